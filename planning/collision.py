@@ -1,0 +1,258 @@
+"""Sphere-based collision checking of configurations and edges, in vectorized batches.
+
+A configuration is valid when it is inside the joint limits, every sphere (except those of
+``world_ignored_links``) clears the world by the margin, and no two spheres of links that
+may touch overlap. An edge is valid when every configuration on it is valid, sampled so
+that no sphere centre moves more than ``resolution`` between samples: with resolution <= 2
+x margin, the swept robot is then provably collision-free (each point of a sphere's sweep
+lies within resolution/2 of a checked sample).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from core.errors import PlanningError
+from planning.kinematics import BatchKinematics
+from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+from planning.world import EmptyWorld, World
+
+Array = npt.NDArray[np.float64]
+Mask = npt.NDArray[np.bool_]
+
+
+class CollisionChecker(Protocol):
+    """What planners need: batched validity of configurations and of straight edges."""
+
+    def config_valid(self, Q: Array) -> Mask: ...
+
+    def edges_valid(self, Q0: Array, Q1: Array) -> Mask: ...
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Why one configuration is invalid (empty lists: it is valid)."""
+
+    outside_limits: list[str]  # joint names
+    world_contacts: list[str]  # link names touching the world
+    self_contacts: list[tuple[str, str]]  # link pairs overlapping
+
+    @property
+    def valid(self) -> bool:
+        return not (self.outside_limits or self.world_contacts or self.self_contacts)
+
+    def __str__(self) -> str:
+        parts = []
+        if self.outside_limits:
+            parts.append(f"joints outside limits: {self.outside_limits}")
+        if self.world_contacts:
+            parts.append(f"links in collision with the world: {self.world_contacts}")
+        if self.self_contacts:
+            parts.append(f"self-collision between {self.self_contacts}")
+        return "; ".join(parts) or "valid"
+
+
+class SphereCollisionChecker:
+    """Checks configurations of ``robot``, modelled by ``spheres``, against ``world``."""
+
+    chunk = 20_000  # configurations per vectorized pass (bounds memory)
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        spheres: SphereModel,
+        world: World | None = None,
+        *,
+        margin: float | None = None,  # m, default: the robot config's collision margin
+        resolution: float | None = None,  # m, default: the robot config's edge resolution
+        world_ignored_links: tuple[str, ...] | None = None,
+    ) -> None:
+        spheres.check_against(robot)
+        self.robot = robot
+        self.spheres = spheres
+        self.world: World = world if world is not None else EmptyWorld()
+        self.margin = robot.config.collision_margin if margin is None else float(margin)
+        self.resolution = robot.config.edge_resolution if resolution is None else float(resolution)
+        if self.margin < 0 or self.resolution <= 0:
+            raise PlanningError(
+                f"need margin >= 0 and resolution > 0 (m); got {self.margin}, {self.resolution}"
+            )
+        self.kin = BatchKinematics(robot)
+        link_of = [robot.links[name] for name in spheres.links]
+        self.sphere_joint = np.array([lk.joint_id for lk in link_of], np.int64)
+        # Sphere centres in their joint frames.
+        self.sphere_local = np.stack(
+            [lk.T_joint_link[:3, :3] @ c + lk.T_joint_link[:3, 3]
+             for lk, c in zip(link_of, spheres.centers, strict=True)]
+        )
+        self.radii = spheres.radii.astype(float)
+        ignored = robot.config.world_ignored_links if world_ignored_links is None else world_ignored_links
+        for name in ignored:
+            robot.link(name)
+        self.world_spheres = np.flatnonzero(~np.isin(np.asarray(spheres.links), list(ignored)))
+        disabled = robot.disabled_link_pairs
+        names = spheres.links
+        pairs = [
+            (i, j)
+            for i in range(len(names))
+            for j in range(i + 1, len(names))
+            if names[i] != names[j] and frozenset((names[i], names[j])) not in disabled
+        ]
+        self.pairs = np.array(pairs, np.int64).reshape(-1, 2)
+        self.pair_reach = (self.radii[self.pairs[:, 0]] + self.radii[self.pairs[:, 1]]) ** 2
+        self._link_groups = self._group_pairs_by_link()
+        self._displacement = self._displacement_bounds()
+
+    def _group_pairs_by_link(self) -> list[tuple[int, int, Array, float]]:
+        """Self-collision pairs grouped by link pair, with one bounding sphere per link (an
+        extra point after the S spheres): a link pair whose bounds are apart needs no
+        sphere-pair test. Returns (bound_a, bound_b, pair indices, reach^2) per link pair."""
+        links = list(self.spheres.link_names)
+        names = np.asarray(self.spheres.links)
+        bound_local, bound_joint, bound_radius = [], [], []
+        for link in links:
+            idx = np.flatnonzero(names == link)
+            centre = self.sphere_local[idx].mean(axis=0)
+            reach = np.linalg.norm(self.sphere_local[idx] - centre, axis=1) + self.radii[idx]
+            bound_local.append(centre)
+            bound_joint.append(self.sphere_joint[idx[0]])
+            bound_radius.append(float(reach.max()))
+        S = len(self.radii)
+        self.point_joint = np.concatenate([self.sphere_joint, bound_joint]).astype(np.int64)
+        self.point_local = np.concatenate([self.sphere_local, np.asarray(bound_local)])
+        groups: dict[tuple[int, int], list[int]] = {}
+        for k, (i, j) in enumerate(self.pairs):
+            key = (links.index(names[i]), links.index(names[j]))
+            groups.setdefault(key, []).append(k)
+        return [
+            (S + a, S + b, np.asarray(ks), (bound_radius[a] + bound_radius[b]) ** 2)
+            for (a, b), ks in groups.items()
+        ]
+
+    # -- configurations ------------------------------------------------------------------
+
+    def sphere_centers(self, Q: Array) -> Array:
+        """(B, S, 3) world positions of the sphere centres for configurations Q (B, dof)."""
+        return self.kin.points(Q, self.sphere_joint, self.sphere_local)
+
+    def world_clearance(self, Q: Array) -> Array:
+        """(B,) smallest (distance - radius) over the world-checked spheres (m)."""
+        centers = self.sphere_centers(Q)[:, self.world_spheres]
+        B, S, _ = centers.shape
+        d = self.world.distance(centers.reshape(-1, 3)).reshape(B, S)
+        return np.min(d - self.radii[self.world_spheres], axis=1)
+
+    def config_valid(self, Q: Array) -> Mask:
+        """(B,) True where configuration Q[b] is valid (limits, world, self)."""
+        Q = self._batch(Q)
+        out = np.empty(Q.shape[0], bool)
+        for s in range(0, Q.shape[0], self.chunk):
+            out[s : s + self.chunk] = self._valid_chunk(Q[s : s + self.chunk])
+        return out
+
+    def _valid_chunk(self, Q: Array) -> Mask:
+        ok = self.robot.within_limits(Q)
+        points = self.kin.points(Q, self.point_joint, self.point_local)
+        B = Q.shape[0]
+        w = points[:, self.world_spheres].reshape(-1, 3)
+        d = self.world.distance(w).reshape(B, -1) - self.radii[self.world_spheres]
+        ok &= np.all(d >= self.margin, axis=1)
+        for a, b, ks, reach in self._link_groups:
+            gap = points[:, a] - points[:, b]
+            near = np.flatnonzero(np.einsum("bi,bi->b", gap, gap) < reach)
+            if near.size == 0:
+                continue
+            sub = points[near]
+            diff = sub[:, self.pairs[ks, 0]] - sub[:, self.pairs[ks, 1]]
+            hit = np.any(np.einsum("bpi,bpi->bp", diff, diff) < self.pair_reach[ks], axis=1)
+            ok[near[hit]] = False
+        return ok
+
+    def diagnose(self, q: Array) -> Diagnosis:
+        """Which joints, links or link pairs make configuration q (dof,) invalid."""
+        q = self.robot.as_configuration(q)
+        names = self.robot.joint_names
+        outside = [names[i] for i in np.flatnonzero((q < self.robot.lower) | (q > self.robot.upper))]
+        centers = self.sphere_centers(q[None])[0]
+        d = self.world.distance(centers[self.world_spheres]) - self.radii[self.world_spheres]
+        hit = self.world_spheres[d < self.margin]
+        world_links = list(dict.fromkeys(self.spheres.links[i] for i in hit))
+        self_pairs: list[tuple[str, str]] = []
+        if len(self.pairs):
+            diff = centers[self.pairs[:, 0]] - centers[self.pairs[:, 1]]
+            bad = self.pairs[np.sum(diff * diff, axis=1) < self.pair_reach]
+            links = self.spheres.links
+            self_pairs = list(dict.fromkeys((links[i], links[j]) for i, j in bad))
+        return Diagnosis(outside, world_links, self_pairs)
+
+    # -- edges ---------------------------------------------------------------------------
+
+    def _displacement_bounds(self) -> Array:
+        """(S, dof) bound on how far sphere s moves per unit motion of joint j, for every
+        configuration: the chain length from joint j to the sphere (revolute) or 1
+        (prismatic). Zero where joint j does not carry the sphere."""
+        kin, robot = self.kin, self.robot
+        bounds = np.zeros((len(self.radii), robot.dof))
+        for s, (js, local) in enumerate(zip(self.sphere_joint, self.sphere_local, strict=True)):
+            length = float(np.linalg.norm(local))
+            j = int(js)
+            while j > 0:
+                col = kin.idx_q[j]
+                if kin.prismatic[j]:
+                    bounds[s, col] = 1.0
+                    span = max(abs(robot.lower[col]), abs(robot.upper[col]))
+                    length += span
+                else:
+                    bounds[s, col] = length
+                length += float(np.linalg.norm(kin.placements_t[j]))
+                j = kin.parents[j]
+        return bounds
+
+    def edge_steps(self, Q0: Array, Q1: Array) -> npt.NDArray[np.int64]:
+        """(E,) number of sub-steps per edge so that no sphere centre moves more than the
+        resolution between consecutive samples."""
+        reach = np.abs(Q1 - Q0) @ self._displacement.T  # (E, S)
+        return np.maximum(np.ceil(reach.max(axis=1) / self.resolution), 1).astype(np.int64)
+
+    def edges_valid(self, Q0: Array, Q1: Array) -> Mask:
+        """(E,) True where the straight joint-space edge Q0[e] -> Q1[e] is valid, endpoints
+        included. All samples of all edges are checked as one batch."""
+        Q0, Q1 = self._batch(Q0), self._batch(Q1)
+        if Q0.shape != Q1.shape:
+            raise PlanningError(f"edge endpoints differ in shape: {Q0.shape} vs {Q1.shape}")
+        if Q0.shape[0] == 0:
+            return np.zeros(0, bool)
+        steps = self.edge_steps(Q0, Q1)
+        counts = steps + 1
+        edge_of = np.repeat(np.arange(len(steps)), counts)
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        frac = (np.arange(edge_of.size) - starts[edge_of]) / steps[edge_of]
+        samples = Q0[edge_of] + frac[:, None] * (Q1 - Q0)[edge_of]
+        return np.logical_and.reduceat(self.config_valid(samples), starts)
+
+    def edge_valid(self, q0: Array, q1: Array) -> bool:
+        return bool(self.edges_valid(q0[None], q1[None])[0])
+
+    def first_invalid_edge(self, path: Array) -> int | None:
+        """Index i of the first invalid edge path[i] -> path[i+1], or None if all are valid."""
+        path = self._batch(path)
+        if len(path) < 2:
+            return None if bool(self.config_valid(path).all()) else 0
+        ok = self.edges_valid(path[:-1], path[1:])
+        bad = np.flatnonzero(~ok)
+        return int(bad[0]) if bad.size else None
+
+    def _batch(self, Q: Array) -> Array:
+        arr = np.asarray(Q, dtype=float)
+        if arr.ndim != 2 or arr.shape[1] != self.robot.dof:
+            raise PlanningError(
+                f"expected configurations of shape (B, {self.robot.dof}), got {arr.shape}"
+            )
+        if not np.all(np.isfinite(arr)):
+            raise PlanningError("configurations contain NaN or inf")
+        return arr
