@@ -82,6 +82,13 @@ class SphereCollisionChecker:
             raise PlanningError(
                 f"need margin >= 0 and resolution > 0 (m); got {self.margin}, {self.resolution}"
             )
+        exact = getattr(self.world, "exact_up_to", np.inf)
+        if exact < spheres.radii.max() + self.margin:
+            raise PlanningError(
+                f"the world's distances are exact only up to {exact:.3f} m, less than the "
+                f"largest sphere radius + margin ({spheres.radii.max() + self.margin:.3f} m): "
+                "build it with a wider band"
+            )
         self.kin = BatchKinematics(robot)
         link_of = [robot.links[name] for name in spheres.links]
         self.sphere_joint = np.array([lk.joint_id for lk in link_of], np.int64)

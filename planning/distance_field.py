@@ -26,9 +26,10 @@ log = logging.getLogger(__name__)
 class CloudWorld:
     """Obstacles given as a point cloud (base/world frame)."""
 
-    def __init__(self, points: Array, voxel: float = 0.01, band: float = 0.3) -> None:
+    def __init__(self, points: Array, voxel: float = 0.01, band: float = 0.15) -> None:
         """points (N, 3) m; voxel: lattice spacing (m); band: distances are exact up to this
-        (m) and reported as ``band`` beyond it (a valid lower bound)."""
+        (m) and reported as ``band`` beyond it (a valid lower bound). The band must exceed
+        the largest sphere radius + margin + voxel * sqrt(3) for checks to be exact."""
         pts = np.asarray(points, float)
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
             raise PlanningError(f"a cloud world needs points of shape (N, 3), N > 0; got {pts.shape}")
@@ -56,17 +57,27 @@ class CloudWorld:
         self.field = field
         self._flat = field.ravel()
         self._strides = np.array([self.shape[1] * self.shape[2], self.shape[2], 1], np.int64)
+        self._shape = np.asarray(self.shape)
+        self._inv_voxel = 1.0 / voxel
+        self._origin_scaled = self.origin / voxel
         log.debug("cloud world: %d points, lattice %s, %d exact", len(pts), self.shape, len(near))
+
+    @property
+    def exact_up_to(self) -> float:
+        """Distances (m) below this are never capped by the band, lattice slack included."""
+        return self.band - self.voxel * np.sqrt(3.0)
 
     def distance(self, points: Array) -> Array:
         """Lower bound (N,) on the distance (m) from points (N, 3) to the cloud."""
-        rel = (points - self.origin) / self.voxel
+        rel = points * self._inv_voxel - self._origin_scaled
         idx = np.rint(rel)
-        inside = np.all((idx >= 0) & (idx < np.asarray(self.shape)), axis=1)
         lattice = idx.astype(np.int64)
-        np.clip(lattice, 0, np.asarray(self.shape) - 1, out=lattice)
-        value = self._flat[lattice @ self._strides].astype(float)
+        flat = lattice @ self._strides
+        inside = np.all((lattice >= 0) & (lattice < self._shape), axis=1)
+        np.clip(flat, 0, self._flat.size - 1, out=flat)
+        value = self._flat[flat]
+        rel -= idx
         # 1e-6 m also covers the float32 rounding of the stored distances.
-        offset = np.linalg.norm(rel - idx, axis=1) * self.voxel + 1e-6
+        offset = np.sqrt(np.einsum("ij,ij->i", rel, rel)) * self.voxel + 1e-6
         # Outside the lattice every cloud point is at least the padding (> band) away.
         return np.where(inside, value - offset, self.band)

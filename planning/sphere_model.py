@@ -70,10 +70,15 @@ class SphereModel:
     # -- YAML (cuRobo layout) ------------------------------------------------------------
 
     def to_yaml(self) -> str:
+        """cuRobo's layout, to the micrometre. Radii are rounded *up* by the centre's
+        rounding error so that a covering model stays covering once written."""
         spheres: dict[str, list[dict[str, object]]] = {}
         for link, c, r in zip(self.links, self.centers, self.radii, strict=True):
+            centre = np.round(c, 6)
+            grow = float(np.linalg.norm(centre - c))
+            radius = float(np.ceil((r + grow) * 1e6 - 1e-6) / 1e6)
             spheres.setdefault(link, []).append(
-                {"center": [round(float(v), 6) for v in c], "radius": round(float(r), 6)}
+                {"center": [float(v) for v in centre], "radius": radius}
             )
         return yaml.safe_dump({"collision_spheres": spheres}, sort_keys=False)
 

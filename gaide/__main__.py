@@ -1,0 +1,3 @@
+from gaide.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,51 @@
+"""Helpers shared by the CLI commands: loading the robot and its spheres, writing JSON."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from planning.robot_model import RobotModel, load_robot
+from planning.sphere_model import SphereModel
+from planning.spherize import generate_spheres
+
+
+def robot_and_spheres(config: str | None) -> tuple[RobotModel, SphereModel]:
+    """The robot of ``config`` (default UR5) and its sphere model (generated if the config
+    names no sphere file)."""
+    robot = load_robot(config)
+    if robot.config.spheres is not None:
+        spheres = SphereModel.load(robot.config.spheres)
+    else:
+        spheres = generate_spheres(robot)
+    spheres.check_against(robot)
+    return robot, spheres
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+def write_json(path: str | Path, payload: dict[str, Any]) -> None:
+    """Write JSON atomically (temporary file, then rename)."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_name(target.name + ".tmp")
+    tmp.write_text(json.dumps(_jsonable(payload), indent=2) + "\n")
+    tmp.replace(target)
+
+
+def print_table(rows: list[tuple[str, str]], title: str = "") -> None:
+    if title:
+        print(title)
+    width = max(len(k) for k, _ in rows)
+    for key, value in rows:
+        print(f"  {key:<{width}}  {value}")

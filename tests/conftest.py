@@ -1,0 +1,45 @@
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planning.robot_model import RobotModel, load_robot
+from planning.sphere_model import SphereModel
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED_DATA = ROOT.parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def robot() -> RobotModel:
+    return load_robot()
+
+
+@pytest.fixture(scope="session")
+def spheres(robot: RobotModel) -> SphereModel:
+    assert robot.config.spheres is not None
+    return SphereModel.load(robot.config.spheres)
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(1234)
+
+
+def shared_data(rel: str) -> Path:
+    """A file of ../shared/data, or a skip naming what is missing."""
+    path = SHARED_DATA / rel
+    if not path.exists():
+        pytest.skip(f"real test data {path} is absent (../shared/data is not beside the repo)")
+    return path
+
+
+def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "gaide", *args],
+        capture_output=True, text=True, cwd=cwd or ROOT, timeout=600,
+    )

@@ -1,0 +1,39 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from tests.conftest import run_cli
+
+
+def test_bench_collision_quick_writes_every_key(tmp_path: Path) -> None:
+    out = tmp_path / "bench.json"
+    proc = run_cli("bench", "collision", "--quick", "--json", str(out))
+    assert proc.returncode == 0, proc.stderr
+    figures = json.loads(out.read_text())
+    for key in ("configs_per_s_cloud", "configs_per_s_primitives", "edges_per_s",
+                "fk_max_err_m", "mesh_missed", "mesh_false_alarm_rate"):
+        assert key in figures
+    assert figures["fk_max_err_m"] <= 1e-9
+    assert figures["mesh_missed"] == 0
+    assert "configs_per_s_cloud" in proc.stdout
+
+
+def test_demo_writes_its_picture(tmp_path: Path) -> None:
+    proc = run_cli("demo", "-o", str(tmp_path / "demo"))
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
+    assert summary["home_valid"] and summary["ik_solutions"] >= 1
+    assert (tmp_path / "demo" / "robot_scene.png").stat().st_size > 10_000
+
+
+def test_bad_input_prints_one_line_and_exits_with_the_stage_code(tmp_path: Path) -> None:
+    proc = run_cli("robot", "show", "--q", "1,2", "-o", str(tmp_path / "x.png"))
+    assert proc.returncode == 6
+    assert proc.stderr.strip().count("\n") == 0
+    assert "expected (6,)" in proc.stderr
+    assert not (tmp_path / "x.png").exists()
+    cfg = tmp_path / "robot.yaml"
+    cfg.write_text(f"urdf: {tmp_path / 'missing.urdf'}\n")
+    proc = run_cli("robot", "info", "--robot", str(cfg))
+    assert proc.returncode == 6 and "missing.urdf does not exist" in proc.stderr
