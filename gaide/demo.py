@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core.errors import PlanningError
 from core.transforms import from_xyz_rpy
 from gaide.common import print_table, robot_and_spheres, write_json
 from planning.bench_collision import benchmark_workcell
@@ -21,7 +22,6 @@ from planning.distance_field import CloudWorld
 from planning.ik import solve_ik
 from planning.plot import render_scene
 from planning.primitives import PrimitiveWorld
-from core.errors import PlanningError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -51,8 +51,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
     valid = checker.config_valid(Q)
     rate = len(Q) / (time.perf_counter() - t1)
     picture = out / "robot_scene.png"
-    render_scene(picture, checker, [home, solutions[0]], cloud,
-                 title="UR5 spheres: home (blue), IK solution (orange)")
+    render_scene(
+        picture,
+        checker,
+        [home, solutions[0]],
+        cloud,
+        title="UR5 spheres: home (blue), IK solution (orange)",
+    )
     summary = {
         "spheres": len(spheres),
         "cloud_points": len(cloud),

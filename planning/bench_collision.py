@@ -50,7 +50,9 @@ class CollisionBenchCfg:
 def benchmark_workcell(rng: np.random.Generator) -> list[Primitive]:
     """20 primitives around a UR5 on a table: table top 2 cm below the base (an adapter
     plate), a two-board shelf, boxes and cylinders in reach."""
-    prims: list[Primitive] = [Box(np.array([1.6, 1.6, 0.04]), from_xyz_rpy([0.2, 0, -0.04], [0, 0, 0]))]
+    prims: list[Primitive] = [
+        Box(np.array([1.6, 1.6, 0.04]), from_xyz_rpy([0.2, 0, -0.04], [0, 0, 0]))
+    ]
     # shelf: two sides, two boards, back
     x = 0.75
     prims += [
@@ -68,7 +70,11 @@ def benchmark_workcell(rng: np.random.Generator) -> list[Primitive]:
             continue  # keep the shelf clear
         if len(prims) % 3 == 0:
             h = rng.uniform(0.1, 0.3)
-            prims.append(Cylinder(float(rng.uniform(0.03, 0.07)), h, from_xyz_rpy([*xy, h / 2 - 0.02], [0, 0, 0])))
+            prims.append(
+                Cylinder(
+                    float(rng.uniform(0.03, 0.07)), h, from_xyz_rpy([*xy, h / 2 - 0.02], [0, 0, 0])
+                )
+            )
         else:
             size = rng.uniform([0.05, 0.05, 0.05], [0.2, 0.2, 0.3])
             prims.append(Box(size, from_xyz_rpy([*xy, size[2] / 2 - 0.02], [0, 0, a])))
@@ -85,7 +91,9 @@ def _rate(fn: Any, n: int, repeats: int) -> float:
 
 
 def run_collision_benchmark(
-    robot: RobotModel, spheres: SphereModel, cfg: CollisionBenchCfg | None = None,
+    robot: RobotModel,
+    spheres: SphereModel,
+    cfg: CollisionBenchCfg | None = None,
     progress: Any = None,
 ) -> dict[str, Any]:
     cfg = cfg or CollisionBenchCfg()
@@ -106,14 +114,16 @@ def run_collision_benchmark(
     starts = Q[check_c.config_valid(Q)][: cfg.edges]
     direction = rng.normal(size=starts.shape)
     ends = starts + direction / np.linalg.norm(direction, axis=1, keepdims=True)
-    results["edges_per_s"] = _rate(lambda: check_c.edges_valid(starts, ends), len(starts), cfg.repeats)
+    results["edges_per_s"] = _rate(
+        lambda: check_c.edges_valid(starts, ends), len(starts), cfg.repeats
+    )
     results["edge_samples_mean"] = float(check_c.edge_steps(starts, ends).mean() + 1)
 
     fk_err = 0.0
     for q in Q[:500]:
         ours = check_c.sphere_centers(q[None])[0]
-        ref = reference_points(robot, q, check_c.sphere_joint, check_c.sphere_local)
-        fk_err = max(fk_err, float(np.abs(ours - ref).max()))
+        pinocchio_says = reference_points(robot, q, check_c.sphere_joint, check_c.sphere_local)
+        fk_err = max(fk_err, float(np.abs(ours - pinocchio_says).max()))
     results["fk_max_err_m"] = fk_err
 
     near: list[Array] = []
@@ -131,10 +141,12 @@ def run_collision_benchmark(
     for key, checker in (("", check_p), ("_cloud", check_c)):
         free = checker.world_clearance(Qn) >= checker.margin
         results[f"mesh_missed{key}"] = int(np.sum(truth & free))
-        results[f"mesh_false_alarm_rate{key}"] = float(np.sum(~truth & ~free) / max(np.sum(~truth), 1))
+        results[f"mesh_false_alarm_rate{key}"] = float(
+            np.sum(~truth & ~free) / max(np.sum(~truth), 1)
+        )
     results["mesh_missed"] += results.pop("mesh_missed_cloud")
     results.update(
-        mesh_samples=int(len(Qn)),
+        mesh_samples=len(Qn),
         mesh_colliding_share=float(truth.mean()),
         near_band_m=cfg.near_band,
         margin_m=check_c.margin,

@@ -94,11 +94,15 @@ class SphereCollisionChecker:
         self.sphere_joint = np.array([lk.joint_id for lk in link_of], np.int64)
         # Sphere centres in their joint frames.
         self.sphere_local = np.stack(
-            [lk.T_joint_link[:3, :3] @ c + lk.T_joint_link[:3, 3]
-             for lk, c in zip(link_of, spheres.centers, strict=True)]
+            [
+                lk.T_joint_link[:3, :3] @ c + lk.T_joint_link[:3, 3]
+                for lk, c in zip(link_of, spheres.centers, strict=True)
+            ]
         )
         self.radii = spheres.radii.astype(float)
-        ignored = robot.config.world_ignored_links if world_ignored_links is None else world_ignored_links
+        ignored = (
+            robot.config.world_ignored_links if world_ignored_links is None else world_ignored_links
+        )
         for name in ignored:
             robot.link(name)
         self.world_spheres = np.flatnonzero(~np.isin(np.asarray(spheres.links), list(ignored)))
@@ -184,7 +188,9 @@ class SphereCollisionChecker:
         """Which joints, links or link pairs make configuration q (dof,) invalid."""
         q = self.robot.as_configuration(q)
         names = self.robot.joint_names
-        outside = [names[i] for i in np.flatnonzero((q < self.robot.lower) | (q > self.robot.upper))]
+        outside = [
+            names[i] for i in np.flatnonzero((q < self.robot.lower) | (q > self.robot.upper))
+        ]
         centers = self.sphere_centers(q[None])[0]
         d = self.world.distance(centers[self.world_spheres]) - self.radii[self.world_spheres]
         hit = self.world_spheres[d < self.margin]

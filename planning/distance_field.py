@@ -32,7 +32,9 @@ class CloudWorld:
         the largest sphere radius + margin + voxel * sqrt(3) for checks to be exact."""
         pts = np.asarray(points, float)
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
-            raise PlanningError(f"a cloud world needs points of shape (N, 3), N > 0; got {pts.shape}")
+            raise PlanningError(
+                f"a cloud world needs points of shape (N, 3), N > 0; got {pts.shape}"
+            )
         if not np.all(np.isfinite(pts)):
             raise PlanningError("the cloud has non-finite points")
         if voxel <= 0 or band <= voxel:
@@ -42,7 +44,9 @@ class CloudWorld:
         self.band = float(band)
         pad = band + voxel
         self.origin = pts.min(axis=0) - pad
-        self.shape = tuple(int(v) for v in np.ceil((pts.max(axis=0) + pad - self.origin) / voxel) + 1)
+        self.shape = tuple(
+            int(v) for v in np.ceil((pts.max(axis=0) + pad - self.origin) / voxel) + 1
+        )
         occupied = np.zeros(self.shape, bool)
         idx = np.rint((pts - self.origin) / voxel).astype(np.int64)
         occupied[idx[:, 0], idx[:, 1], idx[:, 2]] = True

@@ -27,7 +27,9 @@ class BatchKinematics:
         model = robot.model
         self.njoints = int(model.njoints)
         self.parents = [int(model.parents[j]) for j in range(self.njoints)]
-        self.placements_R = np.stack([model.jointPlacements[j].rotation for j in range(self.njoints)])
+        self.placements_R = np.stack(
+            [model.jointPlacements[j].rotation for j in range(self.njoints)]
+        )
         self.placements_t = np.stack(
             [model.jointPlacements[j].translation for j in range(self.njoints)]
         )
@@ -108,8 +110,9 @@ def _axis_rotation(axis: Array, angle: Array) -> Array:
     return out
 
 
-def reference_points(robot: RobotModel, q: Array, joint_ids: npt.NDArray[np.int64],
-                     local: Array) -> Array:
+def reference_points(
+    robot: RobotModel, q: Array, joint_ids: npt.NDArray[np.int64], local: Array
+) -> Array:
     """Pinocchio's answer for :meth:`BatchKinematics.points` at one configuration (P, 3)."""
     pin.forwardKinematics(robot.model, robot.data, q)
     out = np.empty((len(joint_ids), 3))

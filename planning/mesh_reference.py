@@ -24,8 +24,9 @@ Array = npt.NDArray[np.float64]
 class MeshReference:
     """Exact mesh-versus-primitive collision queries for one robot and one world."""
 
-    def __init__(self, robot: RobotModel, world: PrimitiveWorld,
-                 ignored_links: tuple[str, ...] | None = None) -> None:
+    def __init__(
+        self, robot: RobotModel, world: PrimitiveWorld, ignored_links: tuple[str, ...] | None = None
+    ) -> None:
         if len(world) == 0:
             raise PlanningError("the mesh reference needs at least one obstacle")
         self.robot = robot
@@ -72,8 +73,11 @@ class MeshReference:
             shape = pb.createCollisionShape(t, physicsClientId=self.client, **kw)
             bodies.append(
                 pb.createMultiBody(
-                    baseMass=0, baseCollisionShapeIndex=shape, basePosition=pos,
-                    baseOrientation=orn, physicsClientId=self.client,
+                    baseMass=0,
+                    baseCollisionShapeIndex=shape,
+                    basePosition=pos,
+                    baseOrientation=orn,
+                    physicsClientId=self.client,
                 )
             )
         return bodies
@@ -84,7 +88,9 @@ class MeshReference:
         for name, body in self.link_bodies.items():
             T = poses[name]
             pb.resetBasePositionAndOrientation(
-                body, T[:3, 3].tolist(), Rotation.from_matrix(T[:3, :3]).as_quat().tolist(),
+                body,
+                T[:3, 3].tolist(),
+                Rotation.from_matrix(T[:3, :3]).as_quat().tolist(),
                 physicsClientId=self.client,
             )
         for body in self.link_bodies.values():

@@ -7,11 +7,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import numpy.typing as npt  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import numpy.typing as npt
 
-from planning.collision import SphereCollisionChecker  # noqa: E402
+from planning.collision import SphereCollisionChecker
 
 Array = npt.NDArray[np.float64]
 

@@ -72,7 +72,9 @@ class RobotModel:
         self.acceleration_limits = self._per_joint(
             config.acceleration_limits, np.full(self.dof, 8.0), "acceleration_limits"
         )
-        self.jerk_limits = self._per_joint(config.jerk_limits, np.full(self.dof, 80.0), "jerk_limits")
+        self.jerk_limits = self._per_joint(
+            config.jerk_limits, np.full(self.dof, 80.0), "jerk_limits"
+        )
         self.T_world_base = np.asarray(config.T_world_base, float)
         self.links = self._links()
         self.ee_frame = self.frame_id(config.end_effector)
@@ -185,7 +187,7 @@ class RobotModel:
 
     def within_limits(self, Q: Array) -> npt.NDArray[np.bool_]:
         """(B,) True where every joint of Q (B, dof) is inside its limits."""
-        return np.all((Q >= self.lower) & (Q <= self.upper), axis=-1)
+        return np.all((self.lower <= Q) & (self.upper >= Q), axis=-1)
 
     def sample_uniform(self, rng: np.random.Generator, n: int) -> Array:
         """(n, dof) configurations uniform within the joint limits."""
@@ -204,8 +206,10 @@ class RobotModel:
     def frame_pose(self, q: npt.ArrayLike, frame: str | int | None = None) -> Array:
         """(4, 4) pose of ``frame`` (default: the end effector) in the world frame."""
         arr = self.as_configuration(q)
-        fid = self.ee_frame if frame is None else (
-            frame if isinstance(frame, int) else self.frame_id(frame)
+        fid = (
+            self.ee_frame
+            if frame is None
+            else (frame if isinstance(frame, int) else self.frame_id(frame))
         )
         pin.framesForwardKinematics(self.model, self.data, arr)
         return self.T_world_base @ _se3(self.data.oMf[fid])
@@ -257,7 +261,13 @@ class RobotModel:
             T_link_geom = np.linalg.inv(link.T_joint_link) @ _se3(obj.placement)
             mesh.apply_transform(T_link_geom)
             parts.setdefault(link_name, []).append(mesh)
-        return {name: trimesh.util.concatenate(ms) for name, ms in parts.items()}
+        merged: dict[str, trimesh.Trimesh] = {}
+        for name, ms in parts.items():
+            joined = trimesh.util.concatenate(ms)
+            if not isinstance(joined, trimesh.Trimesh):
+                raise RobotModelError(f"URDF {config.urdf}: link {name} has no triangle mesh")
+            merged[name] = joined
+        return merged
 
     @cached_property
     def disabled_link_pairs(self) -> frozenset[frozenset[str]]:

@@ -121,7 +121,9 @@ class SphereModel:
                         f"sphere file {source}: {link}[{i}] needs center [x, y, z] and radius"
                     ) from err
                 if len(c) != 3:
-                    raise RobotModelError(f"sphere file {source}: {link}[{i}] center needs 3 values")
+                    raise RobotModelError(
+                        f"sphere file {source}: {link}[{i}] center needs 3 values"
+                    )
                 if r <= 0:
                     # cuRobo marks unused slots with negative radii; they carry no geometry.
                     continue
@@ -201,9 +203,7 @@ def frame_mismatch(urdf: str | Path, robot: RobotModel, q: Array) -> float:
     data = model.createData()
     names = [model.names[j] for j in range(1, model.njoints)]
     if sorted(names) != sorted(robot.joint_names):
-        raise RobotModelError(
-            f"{urdf} has joints {names}; the robot has {list(robot.joint_names)}"
-        )
+        raise RobotModelError(f"{urdf} has joints {names}; the robot has {list(robot.joint_names)}")
     q_other = np.array([q[robot.joint_names.index(n)] for n in names])
     pin.framesForwardKinematics(model, data, q_other)
     pin.framesForwardKinematics(robot.model, robot.data, q)

@@ -63,7 +63,10 @@ class _LinkCoverer:
         )
         self.tri = np.asarray(vertices, float)[np.asarray(faces)]  # (F, 3, 3)
         lo, hi = mesh.bounds
-        axes = [np.arange(a, b + cfg.interior_pitch, cfg.interior_pitch) for a, b in zip(lo, hi)]
+        axes = [
+            np.arange(a, b + cfg.interior_pitch, cfg.interior_pitch)
+            for a, b in zip(lo, hi, strict=True)
+        ]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
         inside = mesh.contains(grid) if mesh.is_watertight else np.zeros(len(grid), bool)
         self.interior = grid[inside]
@@ -86,7 +89,9 @@ class _LinkCoverer:
         candidates = [self._balls(*slabs)]
         if k > 1:
             seeds = self._k_centers(samples, k, rng)
-            candidates.append(self._balls(_nearest(centroids, seeds), _nearest(self.interior, seeds)))
+            candidates.append(
+                self._balls(_nearest(centroids, seeds), _nearest(self.interior, seeds))
+            )
             for _ in range(self.cfg.restarts):
                 seeds, _ = kmeans2(samples, k, minit="++", seed=rng, iter=20)
                 candidates.append(
@@ -105,17 +110,21 @@ class _LinkCoverer:
         S = np.asarray(seeds)
         for _ in range(8):
             label = _nearest(samples, S)
-            S = np.asarray([
-                _enclosing_center(samples[label == j]) if np.any(label == j) else S[j]
-                for j in range(k)
-            ])
+            S = np.asarray(
+                [
+                    _enclosing_center(samples[label == j]) if np.any(label == j) else S[j]
+                    for j in range(k)
+                ]
+            )
         return S
 
     def _balls(self, tri_label: npt.NDArray[np.int64], in_label: npt.NDArray[np.int64]) -> _LinkFit:
         """One covering ball per label: the triangles' vertices and interior points it owns."""
         centers, radii = [], []
         for j in np.unique(np.concatenate([tri_label, in_label])):
-            pts = np.concatenate([self.tri[tri_label == j].reshape(-1, 3), self.interior[in_label == j]])
+            pts = np.concatenate(
+                [self.tri[tri_label == j].reshape(-1, 3), self.interior[in_label == j]]
+            )
             c = _enclosing_center(pts)
             centers.append(c)
             radii.append(float(np.sqrt(np.max(np.sum((pts - c) ** 2, axis=1)))))

@@ -35,7 +35,10 @@ def cmd_collision(args: argparse.Namespace) -> int:
     rows = [
         ("configs_per_s_cloud", f"{res['configs_per_s_cloud']:,.0f}  (target >= 100,000)"),
         ("configs_per_s_primitives", f"{res['configs_per_s_primitives']:,.0f}"),
-        ("edges_per_s", f"{res['edges_per_s']:,.0f}  (1 rad, {res['edge_samples_mean']:.0f} samples/edge)"),
+        (
+            "edges_per_s",
+            f"{res['edges_per_s']:,.0f}  (1 rad, {res['edge_samples_mean']:.0f} samples/edge)",
+        ),
         ("fk_max_err_m", f"{res['fk_max_err_m']:.2e}  (target <= 1e-9)"),
         ("mesh_missed", f"{res['mesh_missed']} of {res['mesh_samples']} x 2 worlds  (target 0)"),
         ("mesh_false_alarm_rate", f"{res['mesh_false_alarm_rate']:.3f}  (target <= 0.10)"),

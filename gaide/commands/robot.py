@@ -37,9 +37,12 @@ def cmd_info(args: argparse.Namespace) -> int:
     rows = [("urdf", str(robot.config.urdf)), ("end effector", robot.config.end_effector)]
     for i, name in enumerate(robot.joint_names):
         rows.append(
-            (name, f"[{robot.lower[i]:+.3f}, {robot.upper[i]:+.3f}] rad, "
-                   f"v {robot.velocity_limits[i]:.2f} a {robot.acceleration_limits[i]:.1f} "
-                   f"j {robot.jerk_limits[i]:.0f}")
+            (
+                name,
+                f"[{robot.lower[i]:+.3f}, {robot.upper[i]:+.3f}] rad, "
+                f"v {robot.velocity_limits[i]:.2f} a {robot.acceleration_limits[i]:.1f} "
+                f"j {robot.jerk_limits[i]:.0f}",
+            )
         )
     counts = Counter(spheres.links)
     rows.append(("spheres", f"{len(spheres)}: " + ", ".join(f"{k} {v}" for k, v in counts.items())))
@@ -59,8 +62,11 @@ def cmd_spherize(args: argparse.Namespace) -> int:
 def parse_configuration(text: str | None, robot) -> np.ndarray:  # type: ignore[no-untyped-def]
     """A joint vector from 'a,b,c,...' or a named configuration of the robot config."""
     if text is None:
-        return robot.named_configuration("home") if "home" in robot.config.named_configurations \
+        return (
+            robot.named_configuration("home")
+            if "home" in robot.config.named_configurations
             else (robot.lower + robot.upper) / 2
+        )
     if text in robot.config.named_configurations:
         return robot.named_configuration(text)
     try:

@@ -11,8 +11,14 @@ def test_bench_collision_quick_writes_every_key(tmp_path: Path) -> None:
     proc = run_cli("bench", "collision", "--quick", "--json", str(out))
     assert proc.returncode == 0, proc.stderr
     figures = json.loads(out.read_text())
-    for key in ("configs_per_s_cloud", "configs_per_s_primitives", "edges_per_s",
-                "fk_max_err_m", "mesh_missed", "mesh_false_alarm_rate"):
+    for key in (
+        "configs_per_s_cloud",
+        "configs_per_s_primitives",
+        "edges_per_s",
+        "fk_max_err_m",
+        "mesh_missed",
+        "mesh_false_alarm_rate",
+    ):
         assert key in figures
     assert figures["fk_max_err_m"] <= 1e-9
     assert figures["mesh_missed"] == 0

@@ -16,7 +16,9 @@ from planning.sphere_model import SphereModel
 
 
 def test_distance_field_is_a_tight_lower_bound(rng: np.random.Generator) -> None:
-    world = PrimitiveWorld([Box(np.array([0.6, 0.8, 0.05]), from_xyz_rpy([0.4, 0, 0], [0, 0, 0.3]))])
+    world = PrimitiveWorld(
+        [Box(np.array([0.6, 0.8, 0.05]), from_xyz_rpy([0.4, 0, 0], [0, 0, 0.3]))]
+    )
     cloud = world.sample_surface(20_000, rng)
     field = CloudWorld(cloud, voxel=0.01)
     queries = rng.uniform([-0.1, -0.6, -0.2], [0.9, 0.6, 0.2], size=(20_000, 3))
@@ -34,14 +36,19 @@ def test_distance_field_is_a_tight_lower_bound(rng: np.random.Generator) -> None
     st.lists(st.floats(0.05, 0.5), min_size=3, max_size=3),
     st.floats(-np.pi, np.pi),
 )
-def test_primitive_distances_match_their_meshes(center: list[float], size: list[float], yaw: float) -> None:
+def test_primitive_distances_match_their_meshes(
+    center: list[float], size: list[float], yaw: float
+) -> None:
     import trimesh
 
     from planning.primitives import primitive_mesh
 
     pose = from_xyz_rpy(center, [0.3, 0.0, yaw])
-    for prim in (Box(np.asarray(size), pose), Cylinder(size[0], size[1], pose),
-                 Sphere(size[2], np.asarray(center))):
+    for prim in (
+        Box(np.asarray(size), pose),
+        Cylinder(size[0], size[1], pose),
+        Sphere(size[2], np.asarray(center)),
+    ):
         world = PrimitiveWorld([prim])
         mesh = primitive_mesh(prim)
         pts = np.asarray(center) + np.random.default_rng(0).uniform(-0.8, 0.8, size=(50, 3))
@@ -54,7 +61,9 @@ def test_primitive_distances_match_their_meshes(center: list[float], size: list[
 
 def test_edge_through_a_thin_wall_is_caught(robot: RobotModel, spheres: SphereModel) -> None:
     # a 2 mm wall in the plane x = 0.5, far enough from the base that the arm swings through
-    wall = PrimitiveWorld([Box(np.array([0.002, 2.0, 2.0]), from_xyz_rpy([0.5, 0, 0.5], [0, 0, 0]))])
+    wall = PrimitiveWorld(
+        [Box(np.array([0.002, 2.0, 2.0]), from_xyz_rpy([0.5, 0, 0.5], [0, 0, 0]))]
+    )
     checker = SphereCollisionChecker(robot, spheres, wall)
     q0 = np.array([0.0, -1.2, 0.6, -1.0, -1.57, 0.0])  # reaching forward, through the wall
     a = q0.copy()
@@ -72,7 +81,9 @@ def test_edge_through_a_thin_wall_is_caught(robot: RobotModel, spheres: SphereMo
 
 
 def test_first_invalid_edge_is_reported(robot: RobotModel, spheres: SphereModel) -> None:
-    wall = PrimitiveWorld([Box(np.array([0.002, 2.0, 2.0]), from_xyz_rpy([0.5, 0, 0.5], [0, 0, 0]))])
+    wall = PrimitiveWorld(
+        [Box(np.array([0.002, 2.0, 2.0]), from_xyz_rpy([0.5, 0, 0.5], [0, 0, 0]))]
+    )
     checker = SphereCollisionChecker(robot, spheres, wall)
     side = np.array([np.pi / 2, -1.2, 0.6, -1.0, -1.57, 0.0])
     side2 = side.copy()

@@ -60,7 +60,7 @@ def test_bad_configurations_name_the_joint(robot: RobotModel, q: list[float], me
 
 
 def test_unknown_frame_lists_valid_names(robot: RobotModel) -> None:
-    with pytest.raises(RobotModelError, match="valid frames: .*tool0"):
+    with pytest.raises(RobotModelError, match=r"valid frames: .*tool0"):
         robot.frame_pose(np.zeros(6), "gripper")
     with pytest.raises(RobotModelError, match="valid links"):
         robot.link("gripper_link")
@@ -99,7 +99,7 @@ def test_missing_mesh_is_named(tmp_path: Path) -> None:
     urdf = tmp_path / "arm.urdf"
     urdf.write_text(ARM.format(geometry='<mesh filename="meshes/gone.stl"/>'))
     robot = load_robot(_config(tmp_path, str(urdf)))
-    with pytest.raises(RobotModelError, match="gone.stl"):
+    with pytest.raises(RobotModelError, match=r"gone\.stl"):
         _ = robot.link_meshes
 
 
