@@ -60,7 +60,9 @@ class Diagnosis:
 class SphereCollisionChecker:
     """Checks configurations of ``robot``, modelled by ``spheres``, against ``world``."""
 
-    chunk = 20_000  # configurations per vectorized pass (bounds memory)
+    # Configurations per vectorized pass: small enough that the working arrays stay in cache
+    # (measured: 2k runs ~30% faster than 20k per configuration).
+    chunk = 2048
 
     def __init__(
         self,
