@@ -1,0 +1,337 @@
+"""Read RealSense recordings (ROS1 .bag, ROS2 bag folders, bare .mcap) with ``rosbags``.
+
+``read_bag`` opens any bag ``rosbags.highlevel.AnyReader`` opens, detects the topic layout
+(``perception.bag_layout``), and returns ``Frames``: raw depth (uint16 sensor units) and RGB
+color images with their intrinsics and stamps, the depth units (m per unit), the
+depth-to-color extrinsics ``T_color_depth`` and any joint states. Every bad input raises
+``BagError`` with a message naming the problem and what would be valid.
+
+Stamps are the messages' ``header.stamp`` (ns), or the bag's log time where a driver left the
+header stamp at zero; the time window selects on the same stamps that are returned.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+
+from core.errors import BagError
+from perception.bag_layout import (
+    CAMERA_INFO,
+    WRAPPER_DEPTH_UNITS,
+    StreamTopics,
+    TopicMap,
+    detect_layout,
+    image_topics,
+)
+from perception.bag_messages import (
+    decode_camera_info,
+    decode_float32,
+    decode_joint_state,
+    decode_transform,
+)
+from perception.bag_scan import STREAMS, Scan, library_errors, scan
+from perception.bag_tf import lookup_static, rs_extrinsics_T, sdk_T_color_depth
+from perception.frames import Array, BagLayout, Frames, ImageStream, JointStates
+
+logger = logging.getLogger(__name__)
+
+BAG_SUFFIXES = (".bag", ".mcap", ".db3")
+VALID_INPUT = "a ROS1 .bag file, a ROS2 bag folder (sqlite3 or mcap storage) or a .mcap file"
+
+
+@functools.cache
+def _default_typestore() -> Any:
+    """Types for ROS2 bags that carry no message definitions (older sqlite3 bags)."""
+    return get_typestore(Stores.ROS2_HUMBLE)
+
+
+def read_bag(
+    path: str | Path,
+    *,
+    streams: Sequence[str] = STREAMS,
+    start_ns: int | None = None,
+    end_ns: int | None = None,
+    max_frames: int | None = None,
+    depth_units: float | None = None,
+    namespace: str | None = None,
+) -> Frames:
+    """Read a RealSense recording.
+
+    Args:
+        path: a ROS1 ``.bag`` file, a ROS2 bag folder (sqlite3 or mcap) or a ``.mcap`` file.
+        streams: which of ``"depth"``, ``"color"`` to read; each is required (a missing one
+            is an error) and the others are returned as None.
+        start_ns: first stamp (ns, inclusive) of the frames to read; None for the start.
+        end_ns: last stamp (ns, inclusive) of the frames to read; None for the end.
+        max_frames: at most this many frames per stream (the first ones in the window).
+        depth_units: metres per depth unit; overrides the bag's value (SDK layout) or the
+            realsense-ros millimetre convention. Required when the bag does not record them.
+        namespace: camera topic prefix (``/device_0``, ``/camera``, ``/camera/camera``) when
+            the bag holds several cameras.
+
+    Returns:
+        Frames with depth (H, W) uint16 and color (H, W, 3) uint8 RGB images, stamps in ns,
+        depth units in m per unit, ``T_color_depth`` (depth optical frame in color optical
+        frame; None if the bag records no extrinsics) and joint states (all of them, not
+        windowed, so that every frame has its nearest state).
+
+    Raises:
+        BagError: the path is missing or not a bag, the bag is truncated or corrupt, a
+            required stream, its camera_info or the depth units are missing, or the window
+            holds no frame.
+    """
+    path = Path(path)
+    wanted = _check_arguments(streams, start_ns, end_ns, max_frames, depth_units)
+    reader = _open(path)
+    try:
+        topics = {name: info.msgtype for name, info in reader.topics.items()}
+        layout = detect_layout(topics, namespace)
+        for kind in wanted:
+            if getattr(layout, kind) is None:
+                raise BagError(
+                    f"{path}: no {kind} stream in the {layout.layout.value} layout under "
+                    f"{layout.namespace!r}; image topics in the bag: {image_topics(topics)}"
+                )
+        collected = scan(reader, path, layout, wanted, start_ns, end_ns, max_frames)
+        frames = _assemble(path, topics, layout, wanted, collected, depth_units, start_ns, end_ns)
+    finally:
+        reader.close()
+    logger.info(
+        "read %s (%s layout): %d depth, %d color frames, %s joint states",
+        path,
+        layout.layout.value,
+        len(frames.depth) if frames.depth else 0,
+        len(frames.color) if frames.color else 0,
+        len(frames.joint_states.stamps_ns) if frames.joint_states else 0,
+    )
+    return frames
+
+
+def _check_arguments(
+    streams: Sequence[str],
+    start_ns: int | None,
+    end_ns: int | None,
+    max_frames: int | None,
+    depth_units: float | None,
+) -> tuple[str, ...]:
+    if isinstance(streams, str):
+        streams = (streams,)
+    wanted = tuple(dict.fromkeys(streams))
+    if not wanted or any(s not in STREAMS for s in wanted):
+        raise BagError(f"streams must be a non-empty selection of {list(STREAMS)}, got {streams!r}")
+    if start_ns is not None and end_ns is not None and start_ns > end_ns:
+        raise BagError(f"empty time window: start_ns {start_ns} is after end_ns {end_ns}")
+    if max_frames is not None and max_frames < 1:
+        raise BagError(f"max_frames must be at least 1 (or None for all), got {max_frames}")
+    if depth_units is not None and not (math.isfinite(depth_units) and depth_units > 0):
+        raise BagError(f"depth_units must be a positive number of metres, got {depth_units}")
+    return wanted
+
+
+def _open(path: Path) -> Any:
+    """An open AnyReader on ``path``, or BagError saying why it is not a bag."""
+    if not path.exists():
+        raise BagError(f"{path}: no such file or folder; expected {VALID_INPUT}")
+    if path.is_file() and path.suffix not in BAG_SUFFIXES:
+        raise BagError(
+            f"{path}: not a bag (a {path.suffix or 'suffix-less'} file); expected {VALID_INPUT}"
+        )
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise BagError(f"{path}: folder has no metadata.yaml, so it is not a ROS2 bag folder")
+    try:
+        reader = AnyReader([path], default_typestore=_default_typestore())
+        reader.open()
+    except library_errors() as err:
+        raise BagError(
+            f"{path}: cannot open as a bag ({type(err).__name__}: {err}); it is corrupt, "
+            f"truncated or not a bag. Expected {VALID_INPUT}"
+        ) from err
+    return reader
+
+
+def _assemble(
+    path: Path,
+    topics: dict[str, str | None],
+    layout: TopicMap,
+    wanted: tuple[str, ...],
+    got: Scan,
+    depth_units: float | None,
+    start_ns: int | None,
+    end_ns: int | None,
+) -> Frames:
+    streams: dict[str, ImageStream | None] = {k: None for k in STREAMS}
+    for kind in wanted:
+        stream_topics: StreamTopics = getattr(layout, kind)
+        if not got.all_stamps[kind]:
+            raise BagError(f"{path}: the {kind} topic {stream_topics.image} has no messages")
+        if not got.images[kind]:
+            first, last = min(got.all_stamps[kind]), max(got.all_stamps[kind])
+            raise BagError(
+                f"{path}: no {kind} frame in the time window [{start_ns}, {end_ns}] ns; the "
+                f"bag's {kind} frames are stamped {first} to {last} ns"
+            )
+        streams[kind] = _image_stream(path, topics, layout, kind, got)
+    units = _depth_units(path, layout, got, depth_units, required="depth" in wanted)
+    return Frames(
+        source=path,
+        layout=layout.layout,
+        depth=streams["depth"],
+        color=streams["color"],
+        depth_units=units,
+        T_color_depth=_extrinsics(path, layout, got),
+        joint_states=_joint_states(path, layout, got),
+    )
+
+
+def _image_stream(
+    path: Path, topics: dict[str, str | None], layout: TopicMap, kind: str, got: Scan
+) -> ImageStream:
+    stream_topics: StreamTopics = getattr(layout, kind)
+    images = got.images[kind]
+    sizes = {(im.shape[1], im.shape[0]) for im in images}
+    if len(sizes) > 1:
+        raise BagError(f"{path}: {stream_topics.image} images change size: {sorted(sizes)}")
+    info_topic = stream_topics.camera_info
+    if info_topic not in got.first and kind == "depth" and layout.aligned_depth:
+        # Depth aligned to color is in the color camera's pixels.
+        assert layout.color is not None  # aligned depth is only detected beside color
+        info_topic = layout.color.camera_info
+    if info_topic not in got.first:
+        infos = sorted(n for n, t in topics.items() if t == CAMERA_INFO)
+        raise BagError(
+            f"{path}: no camera_info for the {kind} stream (expected a sensor_msgs/CameraInfo "
+            f"on {stream_topics.camera_info}); camera_info topics in the bag: {infos or 'none'}"
+        )
+    info = got.first[info_topic]
+    intrinsics = decode_camera_info(info, info_topic, sizes.pop())
+    order = np.argsort(np.asarray(got.stamps[kind], dtype=np.int64), kind="stable")
+    return ImageStream(
+        intrinsics=intrinsics,
+        images=tuple(images[i] for i in order),
+        stamps_ns=np.asarray(got.stamps[kind], dtype=np.int64)[order],
+        frame_id=got.frame_ids.get(kind) or str(info.header.frame_id),
+    )
+
+
+def _depth_units(
+    path: Path, layout: TopicMap, got: Scan, override: float | None, *, required: bool
+) -> float | None:
+    """Metres per depth unit: the caller's value, else the bag's, else an error if needed."""
+    recorded: float | None = None
+    if layout.layout is BagLayout.ROS_WRAPPER:
+        recorded = WRAPPER_DEPTH_UNITS
+    elif layout.depth_units is not None and layout.depth_units in got.first:
+        recorded = decode_float32(got.first[layout.depth_units].data)
+        if not (math.isfinite(recorded) and recorded > 0):
+            raise BagError(
+                f"{path}: {layout.depth_units} records depth units {recorded}; they must be a "
+                "positive number of metres (pass depth_units= to override)"
+            )
+    if override is not None:
+        if recorded is not None and not math.isclose(override, recorded, rel_tol=1e-6):
+            logger.warning(
+                "%s: depth_units=%g overrides the bag's %g m per unit", path, override, recorded
+            )
+        return override
+    if recorded is None and required:
+        raise BagError(
+            f"{path}: the bag records no depth units (no "
+            f"'{layout.namespace}/sensor_<n>/option/Depth Units/value' topic); pass "
+            "depth_units=<metres per unit> to read_bag. 0.001 (the RealSense default) would "
+            "be assumed only if you pass it"
+        )
+    return recorded
+
+
+def _extrinsics(path: Path, layout: TopicMap, got: Scan) -> Array | None:
+    """``T_color_depth`` (see ``perception.bag_tf`` for each layout's convention)."""
+    if layout.aligned_depth:
+        return np.eye(4)
+    if layout.layout is BagLayout.SDK:
+        depth, color = layout.depth, layout.color
+        if depth is None or color is None:
+            return None  # extrinsics relate two streams
+        if depth.tf not in got.first or color.tf not in got.first:
+            logger.warning(
+                "%s: no SDK tf topics for both depth and color; extrinsics unknown", path
+            )
+            return None
+        if depth.reference != color.reference:
+            logger.warning(
+                "%s: depth and color extrinsics have different references (%s, %s); unknown",
+                path,
+                depth.tf,
+                color.tf,
+            )
+            return None
+        return sdk_T_color_depth(
+            decode_transform(got.first[depth.tf], depth.tf),
+            decode_transform(got.first[color.tf], color.tf),
+        )
+    if layout.extrinsics is not None and layout.extrinsics in got.first:
+        msg = got.first[layout.extrinsics]
+        return rs_extrinsics_T(msg.rotation, msg.translation, layout.extrinsics)
+    if layout.depth is None or layout.color is None:
+        return None
+    frames = {k: _frame_id(layout, k, got) for k in STREAMS}
+    if got.tf_edges and frames["depth"] and frames["color"]:
+        T = lookup_static(got.tf_edges, target=frames["color"], source=frames["depth"])
+        if T is not None:
+            return T
+    logger.warning(
+        "%s: no depth-to-color extrinsics (no %s/extrinsics/depth_to_color, and /tf_static "
+        "does not link %r to %r); T_color_depth is unknown",
+        path,
+        layout.namespace,
+        frames["depth"],
+        frames["color"],
+    )
+    return None
+
+
+def _frame_id(layout: TopicMap, kind: str, got: Scan) -> str:
+    """The optical frame of a stream: its image header's, else its camera_info header's."""
+    if got.frame_ids.get(kind):
+        return got.frame_ids[kind]
+    stream: StreamTopics | None = getattr(layout, kind)
+    if stream is not None and stream.camera_info in got.first:
+        return str(got.first[stream.camera_info].header.frame_id)
+    return ""
+
+
+def _joint_states(path: Path, layout: TopicMap, got: Scan) -> JointStates | None:
+    """Joint positions (rad) of the JointState topic, sorted by stamp (ns)."""
+    if not got.joints:
+        return None
+    topic = got.joint_topic
+    chosen = got.joints
+    names = tuple(str(n) for n in chosen[0][1].name)
+    rows: list[tuple[int, Array]] = []
+    for stamp, msg in chosen:
+        position = decode_joint_state(msg, names)
+        if position is not None:
+            rows.append((stamp, position))
+    if len(rows) < len(chosen):
+        logger.warning(
+            "%s: %d of %d JointState messages on %s lack some of the joints %s; skipped",
+            path,
+            len(chosen) - len(rows),
+            len(chosen),
+            topic,
+            names,
+        )
+    rows.sort(key=lambda r: r[0])
+    return JointStates(
+        names=names,
+        stamps_ns=np.array([s for s, _ in rows], dtype=np.int64),
+        positions=np.array([p for _, p in rows], dtype=np.float64).reshape(len(rows), len(names)),
+    )

@@ -1,0 +1,190 @@
+"""The scene as a point cloud in the robot's base frame, from one recording.
+
+Steps: fuse depth over frames (median), deproject, colour through the depth-to-color
+extrinsics (optional), move to the base frame with ``T_base_cam`` (the *color* camera's
+pose, as calibration measures it), crop to the workspace box, remove the robot's own points
+(spheres given by the caller, in the base frame), voxel-downsample and drop outliers (Open3D).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+import open3d as o3d
+
+from core.errors import PerceptionError
+from core.transforms import apply, is_rigid
+from perception.depth import Deprojector, fuse_depth, project
+from perception.frames import Frames
+
+Array = npt.NDArray[np.float64]
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, kw_only=True)
+class CloudCfg:
+    workspace_min: tuple[float, float, float] = (-1.0, -1.0, -0.05)  # m, base frame
+    workspace_max: tuple[float, float, float] = (1.0, 1.0, 1.2)  # m, base frame
+    min_depth: float = 0.15  # m, closer readings are discarded (D4xx minimum range)
+    max_depth: float = 4.0  # m
+    voxel: float = 0.01  # m, downsampling voxel (0: keep every point)
+    outlier_neighbors: int = 16  # statistical outlier removal: neighbours considered
+    outlier_std: float = 2.5  # ... and the std-dev ratio beyond which a point goes
+    robot_padding: float = 0.02  # m added to the robot's spheres when removing its points
+    max_frames: int = 30  # frames fused at most
+
+    def __post_init__(self) -> None:
+        if any(a >= b for a, b in zip(self.workspace_min, self.workspace_max, strict=True)):
+            raise PerceptionError(
+                f"workspace box needs min < max on each axis, got {self.workspace_min} .. "
+                f"{self.workspace_max}"
+            )
+        if not 0 < self.min_depth < self.max_depth:
+            raise PerceptionError(
+                f"need 0 < min_depth < max_depth (m), got {self.min_depth}, {self.max_depth}"
+            )
+        if self.voxel < 0 or self.robot_padding < 0:
+            raise PerceptionError("voxel and robot_padding must be >= 0 m")
+
+
+@dataclass(frozen=True)
+class SceneCloud:
+    """A cloud in the base frame, with what each step kept."""
+
+    points: Array  # (N, 3) m, base frame
+    colors: Array | None  # (N, 3) RGB in [0, 1], or None
+    counts: dict[str, int] = field(default_factory=dict)  # points after each step
+    seconds: float = 0.0
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+
+def remove_inside_spheres(
+    points: Array, centers: Array, radii: Array, chunk: int = 65_536
+) -> npt.NDArray[np.bool_]:
+    """(N,) True for points outside every sphere (centres (S, 3), radii (S,), same frame)."""
+    keep = np.ones(len(points), bool)
+    r2 = radii**2
+    for s in range(0, len(points), chunk):
+        block = points[s : s + chunk]
+        d2 = np.sum((block[:, None, :] - centers[None]) ** 2, axis=-1)
+        keep[s : s + chunk] = np.all(d2 > r2[None], axis=1)
+    return keep
+
+
+def scene_cloud(
+    frames: Frames,
+    T_base_cam: Array,
+    cfg: CloudCfg | None = None,
+    *,
+    robot_spheres: tuple[Array, Array] | None = None,
+    colored: bool = True,
+) -> SceneCloud:
+    """The recording's scene in the base frame.
+
+    T_base_cam: (4, 4) pose of the color camera in the base frame (from calibration).
+    robot_spheres: (centres (S, 3) in the base frame, radii (S,)) of the robot at the
+    recorded joint state; points inside them (plus ``cfg.robot_padding``) are removed.
+    """
+    cfg = cfg or CloudCfg()
+    t0 = time.perf_counter()
+    if not is_rigid(np.asarray(T_base_cam, float)):
+        raise PerceptionError("T_base_cam must be a 4x4 rigid transform")
+    if frames.depth is None or len(frames.depth) == 0:
+        raise PerceptionError(f"{frames.source}: no depth frames to build a cloud from")
+    if frames.depth_units is None:
+        raise PerceptionError(f"{frames.source}: depth units unknown; pass them explicitly")
+    T_color_depth = frames.T_color_depth
+    if T_color_depth is None:
+        if frames.color is not None and frames.color.intrinsics != frames.depth.intrinsics:
+            raise PerceptionError(
+                f"{frames.source}: depth-to-color extrinsics are missing, needed to place depth "
+                "points in the calibrated color frame"
+            )
+        T_color_depth = np.eye(4)
+    depth_m = fuse_depth(frames.depth.images[: cfg.max_frames], frames.depth_units)
+    pts_depth, _ = Deprojector(frames.depth.intrinsics).points(
+        depth_m, cfg.min_depth, cfg.max_depth
+    )
+    counts = {"deprojected": len(pts_depth)}
+    if len(pts_depth) == 0:
+        raise PerceptionError(
+            f"{frames.source}: no depth pixel between {cfg.min_depth} and {cfg.max_depth} m"
+        )
+    pts_color = apply(T_color_depth, pts_depth)
+    colors = None
+    if colored and frames.color is not None and len(frames.color):
+        colors = _sample_colors(pts_color, frames.color.images[0], frames)
+    pts = apply(np.asarray(T_base_cam, float), pts_color)
+    lo, hi = np.asarray(cfg.workspace_min), np.asarray(cfg.workspace_max)
+    inside = np.all((pts >= lo) & (pts <= hi), axis=1)
+    pts, colors = pts[inside], None if colors is None else colors[inside]
+    counts["in_workspace"] = len(pts)
+    if robot_spheres is not None:
+        centers, radii = robot_spheres
+        keep = remove_inside_spheres(
+            pts, np.asarray(centers, float), np.asarray(radii, float) + cfg.robot_padding
+        )
+        pts, colors = pts[keep], None if colors is None else colors[keep]
+        counts["robot_removed"] = int(np.sum(~keep))
+    if len(pts) == 0:
+        raise PerceptionError(
+            f"{frames.source}: no points left inside the workspace box {cfg.workspace_min} .. "
+            f"{cfg.workspace_max} (base frame): check T_base_cam and the box"
+        )
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+    if colors is not None:
+        pcd.colors = o3d.utility.Vector3dVector(colors)
+    if cfg.voxel > 0:
+        pcd = pcd.voxel_down_sample(cfg.voxel)
+    counts["downsampled"] = len(pcd.points)
+    if cfg.outlier_neighbors > 0 and len(pcd.points) > cfg.outlier_neighbors:
+        pcd, _ = pcd.remove_statistical_outlier(cfg.outlier_neighbors, cfg.outlier_std)
+    counts["final"] = len(pcd.points)
+    out_colors = np.asarray(pcd.colors) if colors is not None else None
+    return SceneCloud(np.asarray(pcd.points), out_colors, counts, time.perf_counter() - t0)
+
+
+def _sample_colors(pts_color: Array, image: np.ndarray, frames: Frames) -> Array:
+    """RGB in [0, 1] for points in the color frame; grey where outside the color image."""
+    assert frames.color is not None
+    uv, inside = project(pts_color, frames.color.intrinsics)
+    colors = np.full((len(pts_color), 3), 0.5)
+    col = np.clip(np.rint(uv[inside]).astype(np.int64), 0, None)
+    h, w = image.shape[:2]
+    colors[inside] = image[np.minimum(col[:, 1], h - 1), np.minimum(col[:, 0], w - 1)] / 255.0
+    return colors
+
+
+def save_ply(path: str, cloud: SceneCloud) -> None:
+    """Write the cloud as PLY atomically (temporary file, then rename)."""
+    from pathlib import Path
+
+    target = Path(path)
+    tmp = target.with_name(target.stem + ".tmp.ply")
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
+    if cloud.colors is not None:
+        pcd.colors = o3d.utility.Vector3dVector(cloud.colors)
+    if not o3d.io.write_point_cloud(str(tmp), pcd):
+        tmp.unlink(missing_ok=True)
+        raise PerceptionError(f"cannot write {target}")
+    tmp.replace(target)
+
+
+def load_ply(path: str) -> Array:
+    """Points (N, 3) of a PLY file; PerceptionError if missing, unreadable or empty."""
+    from pathlib import Path
+
+    source = Path(path)
+    if not source.is_file():
+        raise PerceptionError(f"cloud file {source} does not exist")
+    pcd = o3d.io.read_point_cloud(str(source))
+    pts = np.asarray(pcd.points)
+    if len(pts) == 0:
+        raise PerceptionError(f"cloud file {source} holds no points (or is not a point cloud)")
+    return pts

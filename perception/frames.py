@@ -1,0 +1,106 @@
+"""What a RealSense recording holds, independent of the bag layout it came from.
+
+Frames: ``T_color_depth`` is the pose of the depth optical frame in the color optical frame
+(``p_color = T_color_depth @ p_depth``), both in the ROS optical convention (x right, y down,
+z forward). Stamps are integer nanoseconds; depth images are raw sensor units (uint16), to be
+multiplied by ``depth_units`` (m per unit).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from core.errors import BagError
+
+Array = npt.NDArray[np.float64]
+
+
+class BagLayout(enum.Enum):
+    """Topic layouts the reader understands (and the synthetic recorder writes)."""
+
+    SDK = "sdk"  # RealSense SDK / viewer: /device_0/sensor_*/...
+    ROS_WRAPPER = "realsense-ros"  # realsense-ros: /camera/color/image_raw, ...
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics of one stream (pixels)."""
+
+    width: int
+    height: int
+    K: Array  # (3, 3)
+    distortion_model: str = "plumb_bob"  # ROS name; RealSense reports e.g. "plumb_bob"
+    D: Array = field(default_factory=lambda: np.zeros(5))  # distortion coefficients
+
+    def __post_init__(self) -> None:
+        if self.width <= 0 or self.height <= 0:
+            raise BagError(f"image size must be positive, got {self.width}x{self.height}")
+        if self.K.shape != (3, 3) or not np.all(np.isfinite(self.K)) or self.K[0, 0] <= 0:
+            raise BagError(f"camera matrix K must be a finite 3x3 with fx > 0, got {self.K}")
+
+    @property
+    def fx(self) -> float:
+        return float(self.K[0, 0])
+
+    @property
+    def fy(self) -> float:
+        return float(self.K[1, 1])
+
+    @property
+    def cx(self) -> float:
+        return float(self.K[0, 2])
+
+    @property
+    def cy(self) -> float:
+        return float(self.K[1, 2])
+
+
+@dataclass(frozen=True)
+class ImageStream:
+    """N images of one stream with their stamps (ns)."""
+
+    intrinsics: Intrinsics
+    images: tuple[np.ndarray, ...]  # depth: (H, W) uint16; color: (H, W, 3) uint8 RGB
+    stamps_ns: npt.NDArray[np.int64]  # (N,)
+    frame_id: str = ""
+
+    def __post_init__(self) -> None:
+        if len(self.images) != len(self.stamps_ns):
+            raise BagError(f"{len(self.images)} images but {len(self.stamps_ns)} stamps")
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+
+@dataclass(frozen=True)
+class JointStates:
+    """Joint states recorded beside the images (sensor_msgs/JointState)."""
+
+    names: tuple[str, ...]
+    stamps_ns: npt.NDArray[np.int64]  # (M,)
+    positions: Array  # (M, len(names)) rad
+
+    def at(self, stamp_ns: int) -> Array:
+        """Positions at the recorded state nearest in time to ``stamp_ns``."""
+        if len(self.stamps_ns) == 0:
+            raise BagError("no joint states recorded")
+        i = int(np.argmin(np.abs(self.stamps_ns - stamp_ns)))
+        return self.positions[i].copy()
+
+
+@dataclass(frozen=True)
+class Frames:
+    """Everything read from one bag (or made by the synthetic recorder)."""
+
+    source: Path
+    layout: BagLayout
+    depth: ImageStream | None
+    color: ImageStream | None
+    depth_units: float | None  # m per depth unit; None if the bag does not say
+    T_color_depth: Array | None  # (4, 4) depth frame in color frame; None if unknown
+    joint_states: JointStates | None = None
