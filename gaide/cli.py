@@ -8,7 +8,7 @@ import sys
 
 from core.errors import GaideError
 from gaide import demo
-from gaide.commands import bench, robot
+from gaide.commands import bench, perception, record, robot
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -16,6 +16,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", required=True)
     demo.add_parser(sub)
+    record.add_parser(sub)
+    perception.add_parser(sub)
     robot.add_parser(sub)
     bench.add_parser(sub)
     return parser

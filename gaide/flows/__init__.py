@@ -1,0 +1,2 @@
+"""Stage flows that join packages (bag -> calibration, bag -> cloud): used by the CLI commands
+and by the end-to-end pipeline."""
