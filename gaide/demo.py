@@ -1,8 +1,8 @@
-"""``gaide demo``: the main job on the embedded default.
+"""``gaide demo``: the main job on the embedded default, the sample bag in ``bags/``.
 
-Today: the robot and collision foundation on a sample workcell: the scene as a point cloud,
-the collision checker on it, a collision-free IK solution, and a picture of the robot's
-spheres in the scene. Later stages (bag, calibration, planning, timing) extend it.
+Calibrates the camera to the robot base from the board in the bag, builds the scene cloud
+in the base frame without the robot's own points, and draws the robot's collision spheres in
+that scene. Later stages (planning, timing, execution) extend it.
 """
 
 from __future__ import annotations
@@ -13,21 +13,24 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import PlanningError
-from core.transforms import from_xyz_rpy
+from calibration.overlay import save_png
 from gaide.common import print_table, robot_and_spheres, write_json
-from planning.bench_collision import benchmark_workcell
+from gaide.flows.calibrate import calibrate_bag
+from gaide.flows.perceive import perceive_bag
+from perception.cloud import save_ply
+from perception.render import render_png
 from planning.collision import SphereCollisionChecker
 from planning.distance_field import CloudWorld
-from planning.ik import solve_ik
 from planning.plot import render_scene
-from planning.primitives import PrimitiveWorld
+
+BAGS = Path(__file__).resolve().parents[1] / "bags"
+SAMPLE_BAG = BAGS / "sample_workcell.bag"
+SAMPLE_TARGET = BAGS / "sample_workcell.target_pose.yaml"
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("demo", help="run the main job on the shipped default")
+    p = sub.add_parser("demo", help="run the main job on the shipped sample bag")
     p.add_argument("-o", "--out", default="out/demo", help="output folder")
-    p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=cmd_demo)
 
 
@@ -35,50 +38,53 @@ def cmd_demo(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(args.seed)
     robot, spheres = robot_and_spheres(None)
-    primitives = PrimitiveWorld(benchmark_workcell(rng))
-    cloud = primitives.sample_surface(50_000, rng)
-    world = CloudWorld(cloud)
-    checker = SphereCollisionChecker(robot, spheres, world)
-    home = robot.named_configuration("home")
-    target = from_xyz_rpy([0.45, 0.25, 0.25], [np.pi, 0.0, 0.0])
-    solutions = solve_ik(robot, target, rng, checker=checker, seed=home)
-    if not solutions:
-        raise PlanningError("demo: no collision-free IK solution for the sample target")
-    Q = robot.sample_uniform(rng, 10_000)
-    t1 = time.perf_counter()
-    valid = checker.config_valid(Q)
-    rate = len(Q) / (time.perf_counter() - t1)
-    picture = out / "robot_scene.png"
+    run = calibrate_bag(SAMPLE_BAG, mode="fixed", target_pose=SAMPLE_TARGET)
+    run.result.save_yaml(out / "calibration.yaml")
+    save_png(out / "calibration_overlay.png", run.overlay)
+    cloud, _, q = perceive_bag(SAMPLE_BAG, run.result, robot, spheres)
+    save_ply(str(out / "scene.ply"), cloud)
+    render_png(out / "scene.png", cloud.points, cloud.colors)
+    checker = SphereCollisionChecker(robot, spheres, CloudWorld(cloud.points))
+    recorded = q if q is not None else robot.named_configuration("home")
+    valid = bool(checker.config_valid(recorded[None])[0])
     render_scene(
-        picture,
+        out / "robot_scene.png",
         checker,
-        [home, solutions[0]],
-        cloud,
-        title="UR5 spheres: home (blue), IK solution (orange)",
+        [recorded],
+        cloud.points,
+        title="UR5 collision spheres in the perceived scene",
     )
+    res = run.result
     summary = {
-        "spheres": len(spheres),
+        "bag": str(SAMPLE_BAG),
+        "calibration_rms_px": res.reprojection_rms_px,
+        "T_base_cam": res.T_base_cam.tolist(),
         "cloud_points": len(cloud),
-        "home_valid": bool(checker.config_valid(home[None])[0]),
-        "ik_solutions": len(solutions),
-        "ik_solution": solutions[0].tolist(),
-        "valid_share_uniform": float(valid.mean()),
-        "configs_per_s": rate,
-        "picture": str(picture),
+        "cloud_counts": cloud.counts,
+        "recorded_joints": recorded.tolist(),
+        "recorded_state_valid": valid,
+        "outputs": sorted(str(p) for p in out.iterdir() if p.suffix in (".yaml", ".png", ".ply")),
         "wall_s": time.perf_counter() - t0,
     }
     write_json(out / "summary.json", summary)
     print_table(
         [
-            ("sphere model", f"{len(spheres)} spheres"),
-            ("scene cloud", f"{len(cloud):,} points, voxel {world.voxel} m"),
-            ("home configuration", "valid" if summary["home_valid"] else "in collision"),
-            ("IK to sample target", f"{len(solutions)} collision-free solutions"),
-            ("uniform samples valid", f"{valid.mean():.1%}"),
-            ("checks per second", f"{rate:,.0f}"),
-            ("picture", str(picture)),
+            ("bag", str(SAMPLE_BAG)),
+            (
+                "calibration",
+                f"RMS {res.reprojection_rms_px:.3f} px, "
+                f"camera at {np.round(res.T_base_cam[:3, 3], 3).tolist()} m",
+            ),
+            (
+                "scene cloud",
+                f"{len(cloud):,} points (robot removed: {cloud.counts.get('robot_removed', 0):,})",
+            ),
+            (
+                "recorded state",
+                "collision-free in the cloud" if valid else "in collision with the cloud",
+            ),
+            ("outputs", str(out)),
             ("wall time", f"{summary['wall_s']:.1f} s"),
         ],
         "gaide demo",

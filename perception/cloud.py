@@ -18,7 +18,7 @@ import open3d as o3d
 
 from core.errors import PerceptionError
 from core.transforms import apply, is_rigid
-from perception.depth import Deprojector, fuse_depth, project
+from perception.depth import deprojector_for, fuse_depth, project
 from perception.frames import Frames
 
 Array = npt.NDArray[np.float64]
@@ -67,13 +67,16 @@ class SceneCloud:
 def remove_inside_spheres(
     points: Array, centers: Array, radii: Array, chunk: int = 65_536
 ) -> npt.NDArray[np.bool_]:
-    """(N,) True for points outside every sphere (centres (S, 3), radii (S,), same frame)."""
+    """(N,) True for points outside every sphere (centres (S, 3), radii (S,), same frame).
+    Only points inside the spheres' bounding box are tested one by one."""
     keep = np.ones(len(points), bool)
+    lo, hi = (centers - radii[:, None]).min(axis=0), (centers + radii[:, None]).max(axis=0)
+    near = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
     r2 = radii**2
-    for s in range(0, len(points), chunk):
-        block = points[s : s + chunk]
-        d2 = np.sum((block[:, None, :] - centers[None]) ** 2, axis=-1)
-        keep[s : s + chunk] = np.all(d2 > r2[None], axis=1)
+    for s in range(0, len(near), chunk):
+        idx = near[s : s + chunk]
+        d2 = np.sum((points[idx, None, :] - centers[None]) ** 2, axis=-1)
+        keep[idx] = np.all(d2 > r2[None], axis=1)
     return keep
 
 
@@ -108,7 +111,7 @@ def scene_cloud(
             )
         T_color_depth = np.eye(4)
     depth_m = fuse_depth(frames.depth.images[: cfg.max_frames], frames.depth_units)
-    pts_depth, _ = Deprojector(frames.depth.intrinsics).points(
+    pts_depth, _ = deprojector_for(frames.depth.intrinsics).points(
         depth_m, cfg.min_depth, cfg.max_depth
     )
     counts = {"deprojected": len(pts_depth)}
@@ -116,22 +119,14 @@ def scene_cloud(
         raise PerceptionError(
             f"{frames.source}: no depth pixel between {cfg.min_depth} and {cfg.max_depth} m"
         )
-    pts_color = apply(T_color_depth, pts_depth)
     colors = None
     if colored and frames.color is not None and len(frames.color):
-        colors = _sample_colors(pts_color, frames.color.images[0], frames)
-    pts = apply(np.asarray(T_base_cam, float), pts_color)
+        colors = _sample_colors(apply(T_color_depth, pts_depth), frames.color.images[0], frames)
+    pts = apply(np.asarray(T_base_cam, float) @ T_color_depth, pts_depth)
     lo, hi = np.asarray(cfg.workspace_min), np.asarray(cfg.workspace_max)
     inside = np.all((pts >= lo) & (pts <= hi), axis=1)
     pts, colors = pts[inside], None if colors is None else colors[inside]
     counts["in_workspace"] = len(pts)
-    if robot_spheres is not None:
-        centers, radii = robot_spheres
-        keep = remove_inside_spheres(
-            pts, np.asarray(centers, float), np.asarray(radii, float) + cfg.robot_padding
-        )
-        pts, colors = pts[keep], None if colors is None else colors[keep]
-        counts["robot_removed"] = int(np.sum(~keep))
     if len(pts) == 0:
         raise PerceptionError(
             f"{frames.source}: no points left inside the workspace box {cfg.workspace_min} .. "
@@ -143,6 +138,20 @@ def scene_cloud(
     if cfg.voxel > 0:
         pcd = pcd.voxel_down_sample(cfg.voxel)
     counts["downsampled"] = len(pcd.points)
+    if robot_spheres is not None:
+        # After downsampling: the same spheres, an eighth of the points to test.
+        centers, radii = robot_spheres
+        keep = remove_inside_spheres(
+            np.asarray(pcd.points),
+            np.asarray(centers, float),
+            np.asarray(radii, float) + cfg.robot_padding,
+        )
+        pcd = pcd.select_by_index(np.flatnonzero(keep).tolist())
+        counts["robot_removed"] = int(np.sum(~keep))
+    if len(pcd.points) == 0:
+        raise PerceptionError(
+            f"{frames.source}: nothing left once the robot's own points are removed"
+        )
     if cfg.outlier_neighbors > 0 and len(pcd.points) > cfg.outlier_neighbors:
         pcd, _ = pcd.remove_statistical_outlier(cfg.outlier_neighbors, cfg.outlier_std)
     counts["final"] = len(pcd.points)
@@ -170,7 +179,7 @@ def save_ply(path: str, cloud: SceneCloud) -> None:
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
     if cloud.colors is not None:
         pcd.colors = o3d.utility.Vector3dVector(cloud.colors)
-    if not o3d.io.write_point_cloud(str(tmp), pcd):
+    if not o3d.io.write_point_cloud(tmp, pcd):
         tmp.unlink(missing_ok=True)
         raise PerceptionError(f"cannot write {target}")
     tmp.replace(target)
@@ -183,7 +192,7 @@ def load_ply(path: str) -> Array:
     source = Path(path)
     if not source.is_file():
         raise PerceptionError(f"cloud file {source} does not exist")
-    pcd = o3d.io.read_point_cloud(str(source))
+    pcd = o3d.io.read_point_cloud(source)
     pts = np.asarray(pcd.points)
     if len(pts) == 0:
         raise PerceptionError(f"cloud file {source} holds no points (or is not a point cloud)")

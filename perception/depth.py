@@ -107,4 +107,18 @@ def project(points: Array, intrinsics: Intrinsics) -> tuple[Array, npt.NDArray[n
         )
     inside = front & (uv[:, 0] >= -0.5) & (uv[:, 1] >= -0.5)
     inside &= (uv[:, 0] < intrinsics.width - 0.5) & (uv[:, 1] < intrinsics.height - 0.5)
-    return uv, inside
+    return np.asarray(uv, dtype=np.float64), inside
+
+
+_DEPROJECTORS: dict[bytes, Deprojector] = {}
+
+
+def deprojector_for(intrinsics: Intrinsics) -> Deprojector:
+    """A cached Deprojector per camera: its rays cost as much as a whole frame's points."""
+    key = np.array([intrinsics.width, intrinsics.height], float).tobytes() + intrinsics.K.tobytes()
+    key += intrinsics.D.tobytes() + intrinsics.distortion_model.encode()
+    if key not in _DEPROJECTORS:
+        if len(_DEPROJECTORS) > 8:
+            _DEPROJECTORS.clear()
+        _DEPROJECTORS[key] = Deprojector(intrinsics)
+    return _DEPROJECTORS[key]

@@ -71,7 +71,7 @@ def render_png(
     image = renderer.render_to_image()
     target = Path(path)
     tmp = target.with_name(target.stem + ".tmp.png")
-    if not o3d.io.write_image(str(tmp), image):
+    if not o3d.io.write_image(Path(tmp), image):
         raise PerceptionError(f"cannot write {target}")
     tmp.replace(target)
 

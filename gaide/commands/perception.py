@@ -23,9 +23,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     cal = sub.add_parser("calibrate", help="camera-to-base transform from a tag or board in a bag")
     cal.add_argument("bag", help="RealSense bag (ROS1 .bag, ROS2 folder or .mcap)")
     cal.add_argument("--mode", choices=["fixed", "hand-eye"], default="fixed")
-    cal.add_argument("--target", help="target spec, e.g. tag36h11:id=0,size=0.08 or "
-                     "charuco:7x5,square=0.04,marker=0.03 (hand-eye; overrides the pose file's)")
-    cal.add_argument("--target-pose", help="fixed mode: YAML with the target and its pose in the base frame")
+    cal.add_argument(
+        "--target",
+        help="target spec, e.g. tag36h11:id=0,size=0.08 or "
+        "charuco:7x5,square=0.04,marker=0.03 (hand-eye; overrides the pose file's)",
+    )
+    cal.add_argument(
+        "--target-pose", help="fixed mode: YAML with the target and its pose in the base frame"
+    )
     cal.add_argument("--robot", help="robot config YAML (hand-eye; default: UR5)")
     cal.add_argument("--flange", help="frame carrying the target (hand-eye; default: end effector)")
     cal.add_argument("--max-frames", type=int, help="use at most this many color frames")
@@ -38,13 +43,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     per.add_argument("bag", help="RealSense bag (ROS1 .bag, ROS2 folder or .mcap)")
     src = per.add_mutually_exclusive_group(required=True)
     src.add_argument("--calib", help="calibration YAML from 'gaide calibrate'")
-    src.add_argument("--T-base-cam", dest="T_base_cam",
-                     help="color camera pose in the base frame: x,y,z,qx,qy,qz,qw (m)")
+    src.add_argument(
+        "--T-base-cam",
+        dest="T_base_cam",
+        help="color camera pose in the base frame: x,y,z,qx,qy,qz,qw (m)",
+    )
     per.add_argument("--robot", help="robot config YAML (default: UR5)")
-    per.add_argument("--joints", help="robot joint values (rad, comma separated) when the bag has none")
+    per.add_argument(
+        "--joints", help="robot joint values (rad, comma separated) when the bag has none"
+    )
     per.add_argument("--no-self-filter", action="store_true", help="keep the robot's own points")
     per.add_argument("--voxel", type=float, default=0.01, help="downsampling voxel (m)")
-    per.add_argument("--workspace", help="crop box in the base frame: xmin,ymin,zmin,xmax,ymax,zmax (m)")
+    per.add_argument(
+        "--workspace", help="crop box in the base frame: xmin,ymin,zmin,xmax,ymax,zmax (m)"
+    )
     per.add_argument("-o", "--output", required=True, help="PLY file to write")
     per.add_argument("--png", help="picture of the cloud (default: beside the PLY)")
     per.add_argument("--json", help="write the figures to this JSON file")
@@ -64,8 +76,15 @@ def _floats(text: str, n: int, what: str) -> list[float]:
 def cmd_calibrate(args: argparse.Namespace) -> int:
     target = parse_target(args.target) if args.target else None
     robot = load_robot(args.robot) if args.mode == "hand-eye" else None
-    run = calibrate_bag(args.bag, mode=args.mode, robot=robot, target=target,
-                        target_pose=args.target_pose, flange=args.flange, max_frames=args.max_frames)
+    run = calibrate_bag(
+        args.bag,
+        mode=args.mode,
+        robot=robot,
+        target=target,
+        target_pose=args.target_pose,
+        flange=args.flange,
+        max_frames=args.max_frames,
+    )
     out = Path(args.output)
     overlay = Path(args.overlay) if args.overlay else out.with_suffix(".overlay.png")
     save_png(overlay, run.overlay)
@@ -85,13 +104,23 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         ("T_base_cam quat", f"{np.round(quat, 5).tolist()} (x, y, z, w)"),
     ]
     if res.spread is not None:
-        rows.append(("methods' spread", f"{res.spread.translation_mm:.2f} mm, {res.spread.rotation_deg:.3f} deg"))
+        rows.append(
+            (
+                "methods' spread",
+                f"{res.spread.translation_mm:.2f} mm, {res.spread.rotation_deg:.3f} deg",
+            )
+        )
     rows += [("calibration", str(out)), ("overlay", str(overlay))]
     print_table(rows, "calibration")
     if args.json:
-        figures = {"reprojection_rms_px": res.reprojection_rms_px, "frames_used": used,
-                   "frames": len(res.frames), "T_base_cam": res.T_base_cam.tolist(),
-                   "calibration": str(out), "overlay": str(overlay)}
+        figures = {
+            "reprojection_rms_px": res.reprojection_rms_px,
+            "frames_used": used,
+            "frames": len(res.frames),
+            "T_base_cam": res.T_base_cam.tolist(),
+            "calibration": str(out),
+            "overlay": str(overlay),
+        }
         if res.spread is not None:
             figures["spread_mm"] = res.spread.translation_mm
             figures["spread_deg"] = res.spread.rotation_deg
@@ -101,8 +130,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 def cmd_perceive(args: argparse.Namespace) -> int:
     robot, spheres = robot_and_spheres(args.robot)
+    calibration: str | np.ndarray
     if args.calib:
-        calibration: object = args.calib
+        calibration = args.calib
     else:
         v = _floats(args.T_base_cam, 7, "--T-base-cam")
         calibration = from_xyz_quat(v[:3], v[3:])
@@ -111,8 +141,15 @@ def cmd_perceive(args: argparse.Namespace) -> int:
         box = _floats(args.workspace, 6, "--workspace")
         cfg_kwargs.update(workspace_min=tuple(box[:3]), workspace_max=tuple(box[3:]))
     joints = np.asarray(_floats(args.joints, robot.dof, "--joints")) if args.joints else None
-    cloud, frames, q = perceive_bag(args.bag, calibration, robot, spheres, CloudCfg(**cfg_kwargs),  # type: ignore[arg-type]
-                                    joints=joints, self_filter=not args.no_self_filter)
+    cloud, _, q = perceive_bag(
+        args.bag,
+        calibration,
+        robot,
+        spheres,
+        CloudCfg(**cfg_kwargs),  # type: ignore[arg-type]
+        joints=joints,
+        self_filter=not args.no_self_filter,
+    )
     out = Path(args.output)
     png = Path(args.png) if args.png else out.with_suffix(".png")
     save_ply(str(out), cloud)
@@ -122,11 +159,26 @@ def cmd_perceive(args: argparse.Namespace) -> int:
         out.unlink(missing_ok=True)
         raise
     rows = [(step, f"{n:,} points") for step, n in cloud.counts.items()]
-    rows += [("self-filter", "at recorded joints" if q is not None and not args.no_self_filter else "off"),
-             ("time", f"{cloud.seconds:.2f} s"), ("cloud", str(out)), ("picture", str(png))]
+    rows += [
+        (
+            "self-filter",
+            "at recorded joints" if q is not None and not args.no_self_filter else "off",
+        ),
+        ("time", f"{cloud.seconds:.2f} s"),
+        ("cloud", str(out)),
+        ("picture", str(png)),
+    ]
     print_table(rows, "scene cloud (base frame)")
     if args.json:
-        write_json(args.json, {"points": len(cloud), "counts": cloud.counts, "seconds": cloud.seconds,
-                               "self_filter_joints": None if q is None else q.tolist(),
-                               "cloud": str(out), "picture": str(png)})
+        write_json(
+            args.json,
+            {
+                "points": len(cloud),
+                "counts": cloud.counts,
+                "seconds": cloud.seconds,
+                "self_filter_joints": None if q is None else q.tolist(),
+                "cloud": str(out),
+                "picture": str(png),
+            },
+        )
     return 0

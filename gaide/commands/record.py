@@ -19,9 +19,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "record-synthetic",
         help="render a known workcell into a RealSense bag with ground truth beside it",
     )
-    p.add_argument("-o", "--output", required=True, help="bag path (.bag for ROS1, a folder for ROS2)")
-    p.add_argument("--mode", choices=["fixed", "hand-eye"], default="fixed",
-                   help="fixed: a board on the table; hand-eye: a board on the flange")
+    p.add_argument(
+        "-o", "--output", required=True, help="bag path (.bag for ROS1, a folder for ROS2)"
+    )
+    p.add_argument(
+        "--mode",
+        choices=["fixed", "hand-eye"],
+        default="fixed",
+        help="fixed: a board on the table; hand-eye: a board on the flange",
+    )
     p.add_argument("--layout", choices=[m.value for m in BagLayout], default=BagLayout.SDK.value)
     p.add_argument("--ros", type=int, choices=[1, 2], default=1, help="ROS version of the bag")
     p.add_argument("--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS2 storage")
@@ -42,12 +48,20 @@ def cmd_record(args: argparse.Namespace) -> int:
         scene = fixed_scene(robot, rng, frames=args.frames)
     else:
         scene = hand_eye_scene(
-            robot, lambda world: SphereCollisionChecker(robot, spheres, world), rng,
+            robot,
+            lambda world: SphereCollisionChecker(robot, spheres, world),
+            rng,
             states=args.frames,
         )
     bag, truth = record_scene(
-        scene, robot, args.output, rng, layout=BagLayout(args.layout), ros_version=args.ros,
-        storage=args.storage, progress=tqdm,
+        scene,
+        robot,
+        args.output,
+        rng,
+        layout=BagLayout(args.layout),
+        ros_version=args.ros,
+        storage=args.storage,
+        progress=tqdm,
     )
     print(f"bag: {bag}\nground truth: {truth}")
     return 0

@@ -78,24 +78,45 @@ def calibrate_bag(
     depths = _depths(frames)
     if mode == "fixed":
         if target_pose is None:
-            raise CalibrationError("fixed mode needs --target-pose YAML (the target and its pose in the base frame)")
+            raise CalibrationError(
+                "fixed mode needs --target-pose YAML (the target and its pose in the base frame)"
+            )
         spec, T_base_target = load_target_pose(target_pose)
         target = target or spec
-        result = calibrate_fixed(images, intr.K, intr.D, target, T_base_target,
-                                 stamps_ns=frames.color.stamps_ns, depth_m=depths)
+        result = calibrate_fixed(
+            images,
+            intr.K,
+            intr.D,
+            target,
+            T_base_target,
+            stamps_ns=[int(v) for v in frames.color.stamps_ns],
+            depth_m=depths,
+        )
     elif mode == "hand-eye":
         if target is None or robot is None:
             raise CalibrationError("hand-eye mode needs --target SPEC and a robot")
         poses = flange_poses(frames, robot, flange or robot.config.end_effector)
-        result = calibrate_hand_eye(images, intr.K, intr.D, target, poses,
-                                    stamps_ns=frames.color.stamps_ns, depth_m=depths)
+        result = calibrate_hand_eye(
+            images,
+            intr.K,
+            intr.D,
+            target,
+            poses,
+            stamps_ns=[int(v) for v in frames.color.stamps_ns],
+            depth_m=depths,
+        )
     else:
         raise CalibrationError(f"unknown mode '{mode}'; valid: fixed, hand-eye")
     return CalibrationRun(result, _overlay(images, result, target, intr.K, intr.D), frames)
 
 
-def _overlay(images: list[npt.NDArray[np.uint8]], result: CalibrationResult, target: Target,
-             K: Array, D: Array) -> npt.NDArray[np.uint8]:
+def _overlay(
+    images: list[npt.NDArray[np.uint8]],
+    result: CalibrationResult,
+    target: Target,
+    K: Array,
+    D: Array,
+) -> npt.NDArray[np.uint8]:
     used = [f.index for f in result.frames if f.used] or [0]
     image = images[used[0]]
     det = detect(image, target, K, D)

@@ -60,12 +60,19 @@ def perceive_bag(
     """The scene cloud of ``bag``; returns (cloud, frames, joint vector used for the
     self-filter or None). ``calibration``: a calibration YAML, a result, or a 4x4 T_base_cam."""
     cfg = cfg or CloudCfg()
-    frames = read_bag(bag, streams=("depth",) if isinstance(calibration, np.ndarray) else ("depth", "color"),
-                      max_frames=cfg.max_frames)
+    frames = read_bag(
+        bag,
+        streams=("depth",) if isinstance(calibration, np.ndarray) else ("depth", "color"),
+        max_frames=cfg.max_frames,
+    )
     if isinstance(calibration, np.ndarray):
         T_base_cam = calibration
     else:
-        calib = calibration if isinstance(calibration, CalibrationResult) else load_calibration(calibration)
+        calib = (
+            calibration
+            if isinstance(calibration, CalibrationResult)
+            else load_calibration(calibration)
+        )
         check_intrinsics(calib, frames)
         T_base_cam = calib.T_base_cam
     q = joints if joints is not None else recorded_configuration(frames, robot)

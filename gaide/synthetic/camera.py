@@ -30,8 +30,14 @@ def look_at(eye: npt.ArrayLike, target: npt.ArrayLike) -> Array:
 def d435_like(width: int = 640, height: int = 480) -> tuple[Intrinsics, Intrinsics]:
     """Color and depth intrinsics close to a D435's at 640x480 (scaled for other sizes)."""
     s = width / 640.0
-    color = Intrinsics(width, height, np.array([[615.0 * s, 0, 320.0 * s - 0.3], [0, 615.0 * s, 240.0 * s + 0.4], [0, 0, 1]]))
-    depth = Intrinsics(width, height, np.array([[390.0 * s, 0, 321.0 * s], [0, 390.0 * s, 239.0 * s], [0, 0, 1]]))
+    color = Intrinsics(
+        width,
+        height,
+        np.array([[615.0 * s, 0, 320.0 * s - 0.3], [0, 615.0 * s, 240.0 * s + 0.4], [0, 0, 1]]),
+    )
+    depth = Intrinsics(
+        width, height, np.array([[390.0 * s, 0, 321.0 * s], [0, 390.0 * s, 239.0 * s], [0, 0, 1]])
+    )
     return color, depth
 
 
@@ -50,7 +56,9 @@ class DepthNoise:
         if self.sigma_at_1m < 0 or not 0 <= self.dropout < 1 or self.depth_units <= 0:
             raise ConfigError("depth noise needs sigma >= 0, 0 <= dropout < 1, depth_units > 0")
 
-    def apply(self, z: Array, cos_incidence: Array, rng: np.random.Generator) -> npt.NDArray[np.uint16]:
+    def apply(
+        self, z: Array, cos_incidence: Array, rng: np.random.Generator
+    ) -> npt.NDArray[np.uint16]:
         """Raw depth image (uint16 units) from true z (m, NaN where nothing was hit)."""
         noisy = z + rng.normal(size=z.shape) * self.sigma_at_1m * np.nan_to_num(z) ** 2
         lost = ~np.isfinite(z) | (np.abs(cos_incidence) < self.grazing_cos) | (z > self.max_range)
@@ -65,7 +73,9 @@ class VirtualCamera:
     depth: Intrinsics
     T_base_cam: Array  # (4, 4) color optical frame in the base frame
     # depth optical frame in the color frame: a D435's depth (left IR) sits ~15 mm beside it
-    T_color_depth: Array = field(default_factory=lambda: make_transform(translation=np.array([-0.015, 0.0002, 0.0003])))
+    T_color_depth: Array = field(
+        default_factory=lambda: make_transform(translation=np.array([-0.015, 0.0002, 0.0003]))
+    )
     noise: DepthNoise = field(default_factory=DepthNoise)
 
     @property

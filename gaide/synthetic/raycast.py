@@ -38,10 +38,16 @@ class RaycastScene:
         self._colors: list[Array] = []
         self._texture: tuple[int, Texture] | None = None
 
-    def add(self, mesh: trimesh.Trimesh, rgb: tuple[float, float, float], texture: Texture | None = None) -> None:
+    def add(
+        self, mesh: trimesh.Trimesh, rgb: tuple[float, float, float], texture: Texture | None = None
+    ) -> None:
         tmesh = o3d.t.geometry.TriangleMesh()
-        tmesh.vertex.positions = o3d.core.Tensor(np.asarray(mesh.vertices, np.float32))
-        tmesh.triangle.indices = o3d.core.Tensor(np.asarray(mesh.faces, np.int32))
+        tmesh.vertex.positions = o3d.core.Tensor.from_numpy(
+            np.ascontiguousarray(mesh.vertices, np.float32)
+        )
+        tmesh.triangle.indices = o3d.core.Tensor.from_numpy(
+            np.ascontiguousarray(mesh.faces, np.int32)
+        )
         gid = self._scene.add_triangles(tmesh)
         self._colors.append(np.asarray(rgb, float))
         if texture is not None:
@@ -54,11 +60,15 @@ class RaycastScene:
         out: dict[str, list[Array]] = {"z": [], "cos": [], "rgb": []}
         R, t = T_base_cam[:3, :3], T_base_cam[:3, 3]
         for du, dv in offsets:
-            d_cam = np.stack([(u + du - intr.cx) / intr.fx, (v + dv - intr.cy) / intr.fy, np.ones_like(u)], -1)
+            d_cam = np.stack(
+                [(u + du - intr.cx) / intr.fx, (v + dv - intr.cy) / intr.fy, np.ones_like(u)], -1
+            )
             d_cam /= np.linalg.norm(d_cam, axis=-1, keepdims=True)
             d_base = d_cam @ R.T
-            rays = np.concatenate([np.broadcast_to(t, d_base.shape), d_base], axis=-1).astype(np.float32)
-            hit = self._scene.cast_rays(o3d.core.Tensor(rays))
+            rays = np.concatenate([np.broadcast_to(t, d_base.shape), d_base], axis=-1).astype(
+                np.float32
+            )
+            hit = self._scene.cast_rays(o3d.core.Tensor.from_numpy(np.ascontiguousarray(rays)))
             dist = hit["t_hit"].numpy().astype(np.float64)
             ids = hit["geometry_ids"].numpy().astype(np.int64)
             normals = hit["primitive_normals"].numpy().astype(np.float64)
@@ -66,7 +76,7 @@ class RaycastScene:
             dist[missed] = np.nan
             z = dist * d_cam[..., 2]
             cos = np.einsum("hwi,hwi->hw", normals, d_base)
-            palette = np.asarray(self._colors + [np.ones(3)])
+            palette = np.asarray([*self._colors, np.ones(3)])
             base = palette[np.where(missed, len(self._colors), ids)]
             shade = 0.35 + 0.65 * np.abs(normals @ _LIGHT)
             rgb = base * shade[..., None]

@@ -77,7 +77,9 @@ def record_scene(
     frames = Frames(
         source=Path(path),
         layout=layout,
-        depth=ImageStream(cam.depth, tuple(depths), stamps + 1_000_000, "camera_depth_optical_frame"),
+        depth=ImageStream(
+            cam.depth, tuple(depths), stamps + 1_000_000, "camera_depth_optical_frame"
+        ),
         color=ImageStream(cam.color, tuple(colors), stamps, "camera_color_optical_frame"),
         depth_units=cam.noise.depth_units,
         T_color_depth=cam.T_color_depth,
@@ -88,8 +90,10 @@ def record_scene(
     _write_yaml(truth, ground_truth(scene, robot))
     if scene.T_base_target is not None:
         # what a user measures for fixed-target calibration: the target and where it is
-        _write_yaml(target_pose_path(bag), {"target": scene.target.to_dict(),
-                                            "T_base_target": _pose(scene.T_base_target)})
+        _write_yaml(
+            target_pose_path(bag),
+            {"target": scene.target.to_dict(), "T_base_target": _pose(scene.T_base_target)},
+        )
     return bag, truth
 
 

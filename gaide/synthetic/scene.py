@@ -36,7 +36,9 @@ class SyntheticScene:
 
     def __post_init__(self) -> None:
         if (self.T_base_target is None) == (self.T_flange_target is None):
-            raise ConfigError("a scene has its target either fixed (T_base_target) or on the flange")
+            raise ConfigError(
+                "a scene has its target either fixed (T_base_target) or on the flange"
+            )
 
     @property
     def mode(self) -> str:
@@ -59,7 +61,9 @@ class SyntheticScene:
         return robot.frame_pose(q, self.flange) @ self.T_flange_target
 
 
-def target_plate(target: Target, thickness: float = 0.004) -> tuple[trimesh.Trimesh, tuple[float, float, float, float]]:
+def target_plate(
+    target: Target, thickness: float = 0.004
+) -> tuple[trimesh.Trimesh, tuple[float, float, float, float]]:
     """The plate carrying the target, in the target frame: a thin box whose visible face is
     the target's z = 0 plane and whose body lies behind it (away from the viewer)."""
     texture = target.texture(px_per_m=2000.0)
@@ -91,7 +95,9 @@ def fixed_scene(robot: RobotModel, rng: np.random.Generator, *, frames: int = 5)
     # seen face-on from further away tilts by ~0.7 deg (measured), i.e. ~17 mm at the camera.
     target: Target = Charuco(squares_x=9, squares_y=6, square_size=0.045, marker_size=0.034)
     color, depth = d435_like()
-    camera = VirtualCamera(color=color, depth=depth, T_base_cam=look_at([1.15, -0.75, 0.65], [0.45, -0.25, 0.1]))
+    camera = VirtualCamera(
+        color=color, depth=depth, T_base_cam=look_at([1.15, -0.75, 0.65], [0.45, -0.25, 0.1])
+    )
     # The board stands on the table, leaning back, turned 35 degrees away from the camera.
     centre = np.array([0.55, -0.35, TABLE_TOP + 0.12])
     to_cam = camera.T_base_cam[:3, 3] - centre
@@ -101,15 +107,26 @@ def fixed_scene(robot: RobotModel, rng: np.random.Generator, *, frames: int = 5)
     T_base_target = np.eye(4)
     T_base_target[:3, :3] = facing(target, to_cam / np.linalg.norm(to_cam))
     T_base_target[:3, 3] = centre - T_base_target[:3, :3] @ [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]
-    prims: list[Any] = [Box(np.array([1.4, 1.4, 0.04]), from_xyz_rpy([0.3, 0.0, TABLE_TOP - 0.02], [0, 0, 0]))]
+    prims: list[Any] = [
+        Box(np.array([1.4, 1.4, 0.04]), from_xyz_rpy([0.3, 0.0, TABLE_TOP - 0.02], [0, 0, 0]))
+    ]
     for xy in ([0.45, 0.35], [-0.05, 0.5], [0.15, -0.55]):
         size = rng.uniform([0.08, 0.08, 0.06], [0.2, 0.2, 0.25])
         pos = np.asarray(xy) + rng.uniform(-0.04, 0.04, 2)
-        prims.append(Box(size, from_xyz_rpy([*pos, TABLE_TOP + size[2] / 2], [0, 0, rng.uniform(-0.5, 0.5)])))
-    q = robot.named_configuration("home") if "home" in robot.config.named_configurations else (robot.lower + robot.upper) / 2
+        prims.append(
+            Box(size, from_xyz_rpy([*pos, TABLE_TOP + size[2] / 2], [0, 0, rng.uniform(-0.5, 0.5)]))
+        )
+    q = (
+        robot.named_configuration("home")
+        if "home" in robot.config.named_configurations
+        else (robot.lower + robot.upper) / 2
+    )
     return SyntheticScene(
-        world=PrimitiveWorld(prims), target=target, joint_states=np.repeat(q[None], frames, axis=0),
-        camera=camera, T_base_target=T_base_target,
+        world=PrimitiveWorld(prims),
+        target=target,
+        joint_states=np.repeat(q[None], frames, axis=0),
+        camera=camera,
+        T_base_target=T_base_target,
     )
 
 
@@ -126,15 +143,23 @@ def hand_eye_scene(
     # board centred 2 cm in front of the flange, its readable face along the flange's z axis
     T_flange_target = np.eye(4)
     T_flange_target[:3, :3] = facing(target, np.array([0.0, 0.0, 1.0]))
-    T_flange_target[:3, 3] = [0.0, 0.0, 0.02] - T_flange_target[:3, :3] @ [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]
+    T_flange_target[:3, 3] = [0.0, 0.0, 0.02] - T_flange_target[:3, :3] @ [
+        (x0 + x1) / 2,
+        (y0 + y1) / 2,
+        0.0,
+    ]
     table = Box(np.array([1.4, 1.4, 0.04]), from_xyz_rpy([0.3, 0.0, TABLE_TOP - 0.02], [0, 0, 0]))
     world = PrimitiveWorld([table])
     checker: SphereCollisionChecker = checker_for(world)
     color, depth = d435_like()
-    camera = VirtualCamera(color=color, depth=depth, T_base_cam=look_at([1.3, -0.7, 0.8], [0.4, 0.0, 0.35]))
+    camera = VirtualCamera(
+        color=color, depth=depth, T_base_cam=look_at([1.3, -0.7, 0.8], [0.4, 0.0, 0.35])
+    )
     cam_pos = camera.T_base_cam[:3, 3]
     qs: list[Array] = []
-    seed = robot.named_configuration("home") if "home" in robot.config.named_configurations else None
+    seed = (
+        robot.named_configuration("home") if "home" in robot.config.named_configurations else None
+    )
     tries = 0
     while len(qs) < states:
         tries += 1
@@ -149,11 +174,21 @@ def hand_eye_scene(
         T_base_target[:3, :3] = facing(target, normal, roll=rng.uniform(-0.8, 0.8))
         T_base_target[:3, 3] = centre - T_base_target[:3, :3] @ [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]
         T_base_flange = T_base_target @ invert(T_flange_target)
-        sols = solve_ik(robot, T_base_flange, rng, cfg=IKCfg(restarts=8, max_solutions=1), checker=checker, seed=seed)
+        sols = solve_ik(
+            robot,
+            T_base_flange,
+            rng,
+            cfg=IKCfg(restarts=8, max_solutions=1),
+            checker=checker,
+            seed=seed,
+        )
         if sols:
             qs.append(sols[0])
     return SyntheticScene(
-        world=world, target=target, joint_states=np.asarray(qs), camera=camera,
+        world=world,
+        target=target,
+        joint_states=np.asarray(qs),
+        camera=camera,
         T_flange_target=T_flange_target,
     )
 

@@ -64,10 +64,12 @@ def _wall_frames(distance: float = 1.0) -> tuple[Frames, np.ndarray]:
     color = np.zeros((intr.height, intr.width, 3), np.uint8)
     color[..., 0] = 200
     frames = Frames(
-        source=Path("synthetic"), layout=BagLayout.SDK,
+        source=Path("synthetic"),
+        layout=BagLayout.SDK,
         depth=ImageStream(intr, (depth,), np.array([0], np.int64)),
         color=ImageStream(intr, (color,), np.array([0], np.int64)),
-        depth_units=0.001, T_color_depth=np.eye(4),
+        depth_units=0.001,
+        T_color_depth=np.eye(4),
     )
     # camera 1 m above the base origin, looking down the base x axis
     T_base_cam = from_xyz_rpy([0, 0, 1.0], [-np.pi / 2, 0, -np.pi / 2])
@@ -76,7 +78,9 @@ def _wall_frames(distance: float = 1.0) -> tuple[Frames, np.ndarray]:
 
 def test_scene_cloud_places_a_wall_in_the_base_frame(tmp_path: Path) -> None:
     frames, T_base_cam = _wall_frames(1.0)
-    cfg = CloudCfg(workspace_min=(-2, -2, -2), workspace_max=(2, 2, 2), voxel=0.0, outlier_neighbors=0)
+    cfg = CloudCfg(
+        workspace_min=(-2, -2, -2), workspace_max=(2, 2, 2), voxel=0.0, outlier_neighbors=0
+    )
     cloud = scene_cloud(frames, T_base_cam, cfg)
     assert len(cloud) == 64 * 48
     np.testing.assert_allclose(cloud.points[:, 0], 1.0, atol=1e-9)  # the wall is at x = 1 m
@@ -88,7 +92,9 @@ def test_scene_cloud_places_a_wall_in_the_base_frame(tmp_path: Path) -> None:
 
 def test_scene_cloud_crops_and_self_filters() -> None:
     frames, T_base_cam = _wall_frames(1.0)
-    cfg = CloudCfg(workspace_min=(0, -0.1, 0.9), workspace_max=(2, 2, 2), voxel=0.0, outlier_neighbors=0)
+    cfg = CloudCfg(
+        workspace_min=(0, -0.1, 0.9), workspace_max=(2, 2, 2), voxel=0.0, outlier_neighbors=0
+    )
     cropped = scene_cloud(frames, T_base_cam, cfg)
     assert np.all(cropped.points[:, 1] >= -0.1) and np.all(cropped.points[:, 2] >= 0.9)
     robot = (np.array([[1.0, 0.2, 1.0]]), np.array([0.1]))

@@ -1,0 +1,133 @@
+"""``gaide bench perception``: calibration and cloud accuracy on freshly recorded synthetic
+bags, and the speed of bag -> base-frame cloud.
+
+- ``fixed_err_mm`` / ``fixed_err_deg``: fixed-target calibration (ChArUco 9x6 on the table,
+  5 frames) versus the recorder's ground truth T_base_cam.
+- ``handeye_err_mm`` / ``handeye_err_deg``: eye-to-hand calibration (ChArUco on the flange,
+  12 poses, joint states from the bag).
+- ``cloud_median_err_mm``: median distance of the reconstructed cloud (with the estimated fixed
+  calibration, robot removed) to the true surfaces.
+- ``frames_per_s``: 640x480 depth frames per second through the pipeline's own path: read a
+  30-frame recording, fuse its depth (median), deproject, move to base, crop, voxel filter,
+  remove the robot and outliers. ``single_frame_clouds_per_s``: the same with every frame
+  turned into a cloud of its own (no fusion).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from calibration.targets import target_from_dict
+from core.errors import PerceptionError
+from core.transforms import transform_error
+from gaide.flows.calibrate import calibrate_bag
+from gaide.flows.perceive import perceive_bag
+from gaide.synthetic.record import load_ground_truth, record_scene, target_pose_path
+from gaide.synthetic.scene import fixed_scene, hand_eye_scene
+from perception.bag_reader import read_bag
+from perception.cloud import CloudCfg, scene_cloud
+from perception.frames import ImageStream
+from planning.collision import SphereCollisionChecker
+from planning.primitives import PrimitiveWorld
+from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+
+
+def run_perception_benchmark(
+    robot: RobotModel,
+    spheres: SphereModel,
+    *,
+    seed: int = 0,
+    speed_frames: int = 20,
+    handeye_poses: int = 12,
+    progress: Any = None,
+) -> dict[str, Any]:
+    rng = np.random.default_rng(seed)
+    out: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        # fixed target
+        scene = fixed_scene(robot, rng, frames=5)
+        bag, truth = record_scene(scene, robot, folder / "fixed.bag", rng, progress=progress)
+        gt = load_ground_truth(truth)
+        T_true = np.asarray(gt["T_base_cam"]["matrix"])
+        run = calibrate_bag(bag, mode="fixed", target_pose=target_pose_path(bag))
+        dt, dr = transform_error(run.result.T_base_cam, T_true)
+        out.update(
+            fixed_err_mm=dt * 1e3,
+            fixed_err_deg=float(np.degrees(dr)),
+            fixed_rms_px=run.result.reprojection_rms_px,
+        )
+        cloud, _, _ = perceive_bag(bag, run.result, robot, spheres)
+        err = np.abs(PrimitiveWorld.from_dict(gt["world"]).distance(cloud.points))
+        out.update(
+            cloud_median_err_mm=float(np.median(err)) * 1e3,
+            cloud_p95_err_mm=float(np.percentile(err, 95)) * 1e3,
+            cloud_points=len(cloud),
+        )
+        # hand-eye
+        he = hand_eye_scene(
+            robot, lambda w: SphereCollisionChecker(robot, spheres, w), rng, states=handeye_poses
+        )
+        bag_he, truth_he = record_scene(he, robot, folder / "hand_eye.bag", rng, progress=progress)
+        gt_he = load_ground_truth(truth_he)
+        run_he = calibrate_bag(
+            bag_he, mode="hand-eye", robot=robot, target=target_from_dict(gt_he["target"])
+        )
+        dt, dr = transform_error(
+            run_he.result.T_base_cam, np.asarray(gt_he["T_base_cam"]["matrix"])
+        )
+        spread = run_he.result.spread
+        out.update(
+            handeye_err_mm=dt * 1e3,
+            handeye_err_deg=float(np.degrees(dr)),
+            handeye_rms_px=run_he.result.reprojection_rms_px,
+            handeye_frames_used=sum(f.used for f in run_he.result.frames),
+            handeye_methods_spread_mm=None if spread is None else spread.translation_mm,
+            handeye_methods_spread_deg=None if spread is None else spread.rotation_deg,
+        )
+        # speed, on a longer recording: the pipeline's own path (read every frame, fuse,
+        # one cloud), and every frame turned into a cloud on its own
+        speed_scene = replace(
+            scene, joint_states=np.repeat(scene.joint_states[:1], speed_frames, axis=0)
+        )
+        bag_speed, _ = record_scene(
+            speed_scene, robot, folder / "speed.bag", rng, progress=progress
+        )
+        checker = SphereCollisionChecker(robot, spheres)
+        robot_spheres = (checker.sphere_centers(scene.joint_states[:1])[0], checker.radii)
+        cfg = CloudCfg(max_frames=speed_frames)
+        t0 = time.perf_counter()
+        frames = read_bag(bag_speed, streams=("depth",))
+        scene_cloud(frames, run.result.T_base_cam, cfg, robot_spheres=robot_spheres, colored=False)
+        fused_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        frames = read_bag(bag_speed, streams=("depth",))
+        depth = frames.depth
+        if depth is None:
+            raise PerceptionError(f"{bag_speed}: the recorder wrote no depth")
+        for i in range(len(depth)):
+            single = replace(
+                frames,
+                depth=ImageStream(
+                    depth.intrinsics,
+                    depth.images[i : i + 1],
+                    depth.stamps_ns[i : i + 1],
+                ),
+            )
+            scene_cloud(
+                single, run.result.T_base_cam, cfg, robot_spheres=robot_spheres, colored=False
+            )
+        single_s = time.perf_counter() - t0
+        out.update(
+            frames_per_s=len(depth) / fused_s,
+            single_frame_clouds_per_s=len(depth) / single_s,
+            speed_frames=len(depth),
+        )
+    return out
