@@ -1,0 +1,436 @@
+"""The paper's six held-out task families, generated from a seed.
+
+The robot stands at the base origin on a 2 cm adapter plate (table top at z = -0.02 m).
+Starts and goals come from collision-free IK on end-effector (``tool0``) targets: top-down
+poses over the table, in boxes and bins; horizontal poses reaching into shelf levels. Both
+ends are valid and at least 5 cm apart at the end effector.
+
+- ``tabletop``: among 4-8 objects on the table.
+- ``box``: from inside an open box to the table, or back.
+- ``bins``: from one bin to another.
+- ``shelf_i``: from the table into a shelf level.
+- ``shelf_ii``: from one shelf level to another.
+- ``shelf_iii``: into a narrow slot (dividers), deep inside a lower shelf: the hardest.
+
+Seeds: train, validation and test use disjoint ranges (``SEED_RANGES``); a problem's
+randomness comes only from (family, seed), so any machine generates the same problem.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial.transform import Rotation
+
+from core.errors import PlanningError
+from core.transforms import from_xyz_rpy
+from planning.collision import SphereCollisionChecker
+from planning.ik import IKCfg, solve_ik
+from planning.primitives import Box, Cylinder, Primitive, PrimitiveWorld
+from planning.problem import Problem, difficulty
+from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+
+Array = npt.NDArray[np.float64]
+
+TABLE_TOP = -0.02  # m
+FAMILIES = ("tabletop", "box", "bins", "shelf_i", "shelf_ii", "shelf_iii")
+SEED_RANGES = {
+    "train": (0, 1_000_000),
+    "val": (1_000_000, 1_100_000),
+    "test": (2_000_000, 2_100_000),
+}
+MIN_EE_DISTANCE = 0.05  # m
+
+
+def parse_families(text: str) -> list[str]:
+    """'all' or a comma-separated list of family names (PlanningError listing valid ones)."""
+    names = (
+        list(FAMILIES)
+        if text.strip() == "all"
+        else [t.strip() for t in text.split(",") if t.strip()]
+    )
+    bad = [n for n in names if n not in FAMILIES]
+    if bad or not names:
+        raise PlanningError(f"unknown families {bad or [text]}; valid: {list(FAMILIES)} or 'all'")
+    return names
+
+
+def split_seed(split: str, index: int) -> int:
+    if split not in SEED_RANGES:
+        raise PlanningError(f"unknown split '{split}'; valid: {list(SEED_RANGES)}")
+    lo, hi = SEED_RANGES[split]
+    if not 0 <= index < hi - lo:
+        raise PlanningError(
+            f"problem index {index} is outside the {split} range (0..{hi - lo - 1})"
+        )
+    return lo + index
+
+
+# -- geometry helpers --------------------------------------------------------------------
+
+
+def _box(size: npt.ArrayLike, xyz: npt.ArrayLike, yaw: float = 0.0) -> Box:
+    return Box(np.asarray(size, float), from_xyz_rpy(xyz, [0.0, 0.0, yaw]))
+
+
+def _local(origin: npt.ArrayLike, yaw: float, xyz: npt.ArrayLike) -> Array:
+    """A point given in a frame at ``origin`` turned by ``yaw`` about z, in the base frame."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    x, y, z = xyz
+    o = np.asarray(origin, float)
+    return np.array([o[0] + c * x - s * y, o[1] + s * x + c * y, o[2] + z])
+
+
+def table() -> Box:
+    return _box([1.6, 1.6, 0.04], [0.3, 0.0, TABLE_TOP - 0.02])
+
+
+def open_box(
+    centre: npt.ArrayLike, yaw: float, inner: tuple[float, float], height: float, wall: float
+) -> list[Primitive]:
+    """A box open at the top standing on the table: floor and four walls."""
+    w, d = inner
+    c = np.asarray(centre, float)
+    z0 = TABLE_TOP
+    parts: list[Primitive] = [
+        _box([w + 2 * wall, d + 2 * wall, wall], _local(c, yaw, [0, 0, wall / 2]) + [0, 0, z0], yaw)
+    ]
+    zc = z0 + wall + height / 2
+    for sx in (-1, 1):
+        parts.append(
+            _box(
+                [wall, d + 2 * wall, height],
+                _local(c, yaw, [sx * (w + wall) / 2, 0, 0]) + [0, 0, zc],
+                yaw,
+            )
+        )
+    for sy in (-1, 1):
+        parts.append(
+            _box([w, wall, height], _local(c, yaw, [0, sy * (d + wall) / 2, 0]) + [0, 0, zc], yaw)
+        )
+    return parts
+
+
+@dataclass(frozen=True)
+class Shelf:
+    front: Array  # (3,) front-centre at table height, base frame
+    yaw: float  # local +x points into the shelf (away from the robot)
+    width: float
+    depth: float
+    boards: tuple[float, ...]  # board top heights above the table (m), bottom first
+    slots: tuple[float, ...] = ()  # divider y positions (local), for narrow slots
+
+    def parts(self, board: float = 0.02, wall: float = 0.02) -> list[Primitive]:
+        out: list[Primitive] = []
+        top = self.boards[-1]
+        for h in self.boards:
+            out.append(
+                _box(
+                    [self.depth, self.width, board],
+                    _local(self.front, self.yaw, [self.depth / 2, 0, TABLE_TOP + h - board / 2]),
+                    self.yaw,
+                )
+            )
+        for sy in (-1, 1):
+            out.append(
+                _box(
+                    [self.depth, wall, top],
+                    _local(
+                        self.front,
+                        self.yaw,
+                        [self.depth / 2, sy * (self.width + wall) / 2, TABLE_TOP + top / 2],
+                    ),
+                    self.yaw,
+                )
+            )
+        out.append(
+            _box(
+                [wall, self.width + 2 * wall, top],
+                _local(self.front, self.yaw, [self.depth + wall / 2, 0, TABLE_TOP + top / 2]),
+                self.yaw,
+            )
+        )
+        for y in self.slots:
+            lo, hi = self.boards[0], self.boards[1]
+            out.append(
+                _box(
+                    [self.depth, 0.015, hi - lo - board],
+                    _local(
+                        self.front, self.yaw, [self.depth / 2, y, TABLE_TOP + (lo + hi - board) / 2]
+                    ),
+                    self.yaw,
+                )
+            )
+        return out
+
+
+def down_pose(xyz: npt.ArrayLike, yaw: float) -> Array:
+    """tool0 pointing straight down at ``xyz`` (base frame), turned by ``yaw``."""
+    return from_xyz_rpy(xyz, [np.pi, 0.0, yaw])
+
+
+def reach_pose(xyz: npt.ArrayLike, heading: float, tilt: float, roll: float) -> Array:
+    """tool0 pointing horizontally along ``heading`` (rad about z), tilted by ``tilt`` (rad,
+    down positive) and rolled about its own axis by ``roll``."""
+    z = np.array([np.cos(heading) * np.cos(tilt), np.sin(heading) * np.cos(tilt), -np.sin(tilt)])
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = Rotation.from_rotvec(z * roll).as_matrix() @ np.stack([x, y, z], axis=1)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, xyz
+    return T
+
+
+# -- generators ------------------------------------------------------------------------
+
+
+@dataclass
+class _Ctx:
+    robot: RobotModel
+    checker: SphereCollisionChecker
+    rng: np.random.Generator
+
+    def ik(self, T: Array) -> Array | None:
+        sols = solve_ik(
+            self.robot, T, self.rng, cfg=IKCfg(restarts=10, max_solutions=3), checker=self.checker
+        )
+        return sols[int(self.rng.integers(len(sols)))] if sols else None
+
+
+Target = Callable[[], Array]  # draws a candidate end-effector pose
+
+
+def _clutter(rng: np.random.Generator, n: int, keep_clear: list[Array]) -> list[Primitive]:
+    """n boxes and cylinders on the table, 0.3-0.75 m from the base, away from given spots."""
+    out: list[Primitive] = []
+    while len(out) < n:
+        r, a = rng.uniform(0.3, 0.75), rng.uniform(-2.4, 2.4)
+        xy = np.array([r * np.cos(a), r * np.sin(a)])
+        if any(np.linalg.norm(xy - k[:2]) < 0.12 for k in keep_clear):
+            continue
+        h = rng.uniform(0.06, 0.3)
+        if rng.random() < 0.35:
+            out.append(
+                Cylinder(
+                    float(rng.uniform(0.025, 0.06)),
+                    h,
+                    from_xyz_rpy([*xy, TABLE_TOP + h / 2], [0, 0, 0]),
+                )
+            )
+        else:
+            out.append(
+                _box(
+                    rng.uniform([0.04, 0.04, h], [0.15, 0.15, h]),
+                    [*xy, TABLE_TOP + h / 2],
+                    rng.uniform(-np.pi, np.pi),
+                )
+            )
+    return out
+
+
+def _table_target(rng: np.random.Generator) -> Target:
+    def draw() -> Array:
+        r, a = rng.uniform(0.35, 0.7), rng.uniform(-2.2, 2.2)
+        return down_pose(
+            [r * np.cos(a), r * np.sin(a), TABLE_TOP + rng.uniform(0.06, 0.22)],
+            rng.uniform(-np.pi, np.pi),
+        )
+
+    return draw
+
+
+def _in_container(
+    rng: np.random.Generator,
+    centre: Array,
+    yaw: float,
+    inner: tuple[float, float],
+    floor: float,
+    height: float,
+) -> Target:
+    def draw() -> Array:
+        u = rng.uniform(-0.5, 0.5, 2) * (np.asarray(inner) - 0.12).clip(0.0)
+        z = TABLE_TOP + floor + rng.uniform(0.07, max(0.08, height * 0.6))
+        return down_pose(
+            _local(centre, yaw, [u[0], u[1], 0.0]) + [0, 0, z], yaw + rng.choice([0.0, np.pi / 2])
+        )
+
+    return draw
+
+
+def _in_shelf(
+    rng: np.random.Generator,
+    shelf: Shelf,
+    level: int,
+    depth: tuple[float, float],
+    y_range: tuple[float, float] | None = None,
+) -> Target:
+    lo, hi = shelf.boards[level], shelf.boards[level + 1]
+
+    def draw() -> Array:
+        half = shelf.width / 2 - 0.12
+        y = rng.uniform(*(y_range or (-half, half)))
+        x = shelf.depth * rng.uniform(*depth)
+        z = TABLE_TOP + lo + (hi - lo) * rng.uniform(0.4, 0.6)
+        p = _local(shelf.front, shelf.yaw, [x, y, 0.0]) + [0, 0, z]
+        return reach_pose(
+            p,
+            shelf.yaw + rng.uniform(-0.15, 0.15),
+            rng.uniform(-0.1, 0.2),
+            rng.uniform(-np.pi, np.pi),
+        )
+
+    return draw
+
+
+def _shelf(
+    rng: np.random.Generator,
+    *,
+    spacing: tuple[float, float],
+    levels: int,
+    width: tuple[float, float],
+    depth: float,
+    dist: tuple[float, float],
+    slots: bool = False,
+) -> Shelf:
+    heading = rng.uniform(-0.6, 0.6)
+    d = rng.uniform(*dist)
+    front = np.array([d * np.cos(heading), d * np.sin(heading), 0.0])
+    s = rng.uniform(*spacing)
+    first = rng.uniform(0.0, 0.12)
+    boards = tuple(first + s * k for k in range(levels + 1))
+    w = rng.uniform(*width)
+    dividers: tuple[float, ...] = ()
+    if slots:
+        slot = rng.uniform(0.24, 0.3)
+        dividers = (-slot / 2, slot / 2)
+    return Shelf(front, heading, w, depth, boards, dividers)
+
+
+def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Target, Target]:
+    """Obstacles (table first) and two target samplers (start, goal) for one family."""
+    prims: list[Primitive] = [table()]
+    if family == "tabletop":
+        prims += _clutter(rng, int(rng.integers(4, 9)), [])
+        return prims, _table_target(rng), _table_target(rng)
+    if family == "box":
+        r, a = rng.uniform(0.45, 0.6), rng.uniform(-1.2, 1.2)
+        centre = np.array([r * np.cos(a), r * np.sin(a), 0.0])
+        inner = (float(rng.uniform(0.28, 0.4)), float(rng.uniform(0.28, 0.4)))
+        height, yaw = float(rng.uniform(0.12, 0.22)), float(a + rng.uniform(-0.3, 0.3))
+        prims += open_box(centre, yaw, inner, height, 0.015)
+        prims += _clutter(rng, int(rng.integers(1, 4)), [centre])
+        inside = _in_container(rng, centre, yaw, inner, 0.015, height)
+        outside = _table_target(rng)
+        return (prims, inside, outside) if rng.random() < 0.5 else (prims, outside, inside)
+    if family == "bins":
+        n = int(rng.integers(2, 4))
+        angles = np.sort(rng.choice(np.linspace(-1.6, 1.6, 7), n, replace=False))
+        bins = []
+        for a in angles:
+            r = rng.uniform(0.45, 0.6)
+            centre = np.array([r * np.cos(a), r * np.sin(a), 0.0])
+            inner = (float(rng.uniform(0.22, 0.3)), float(rng.uniform(0.22, 0.3)))
+            height = float(rng.uniform(0.08, 0.15))
+            prims += open_box(centre, float(a), inner, height, 0.012)
+            bins.append(_in_container(rng, centre, float(a), inner, 0.012, height))
+        i, j = rng.choice(n, 2, replace=False)
+        return prims, bins[i], bins[j]
+    if family in ("shelf_i", "shelf_ii"):
+        shelf = _shelf(
+            rng, spacing=(0.28, 0.34), levels=2, width=(0.6, 0.8), depth=0.32, dist=(0.45, 0.55)
+        )
+        prims += shelf.parts()
+        if family == "shelf_i":
+            prims += _clutter(rng, int(rng.integers(0, 3)), [shelf.front])
+            level = _in_shelf(rng, shelf, int(rng.integers(0, 2)), (0.15, 0.45))
+            return (
+                (prims, _table_target(rng), level)
+                if rng.random() < 0.5
+                else (prims, level, _table_target(rng))
+            )
+        a, b = _in_shelf(rng, shelf, 0, (0.15, 0.45)), _in_shelf(rng, shelf, 1, (0.15, 0.45))
+        return (prims, a, b) if rng.random() < 0.5 else (prims, b, a)
+    if family == "shelf_iii":
+        shelf = _shelf(
+            rng,
+            spacing=(0.24, 0.27),
+            levels=2,
+            width=(0.7, 0.8),
+            depth=0.34,
+            dist=(0.42, 0.5),
+            slots=True,
+        )
+        prims += shelf.parts()
+        slot_half = shelf.slots[1] - 0.1
+        deep = _in_shelf(rng, shelf, 0, (0.4, 0.55), (-slot_half, slot_half))
+        other = _in_shelf(rng, shelf, 1, (0.15, 0.4)) if rng.random() < 0.6 else _table_target(rng)
+        return (prims, other, deep) if rng.random() < 0.5 else (prims, deep, other)
+    raise PlanningError(f"unknown family '{family}'; valid: {list(FAMILIES)}")
+
+
+def generate_problem(
+    family: str,
+    seed: int,
+    robot: RobotModel,
+    spheres: SphereModel,
+    *,
+    scene_attempts: int = 20,
+    target_attempts: int = 12,
+) -> Problem:
+    """The problem of ``family`` for ``seed``: same inputs, same problem, on any machine."""
+    if family not in FAMILIES:
+        raise PlanningError(f"unknown family '{family}'; valid: {list(FAMILIES)}")
+    rng = np.random.default_rng([FAMILIES.index(family), seed])
+    for _ in range(scene_attempts):
+        prims, start_target, goal_target = _scene(family, rng)
+        world = PrimitiveWorld(prims)
+        ctx = _Ctx(robot, SphereCollisionChecker(robot, spheres, world), rng)
+        start = _solve(ctx, start_target, target_attempts)
+        if start is None:
+            continue
+        p_start = robot.frame_pose(start)[:3, 3]
+        for _ in range(target_attempts):
+            T_goal = goal_target()
+            if np.linalg.norm(T_goal[:3, 3] - p_start) < MIN_EE_DISTANCE:
+                continue
+            goal = ctx.ik(T_goal)
+            if goal is None:
+                continue
+            clear = ctx.checker.world_clearance(np.stack([start, goal]))
+            return Problem(
+                name=f"{family}-{seed}",
+                family=family,
+                seed=seed,
+                world=world,
+                start=start,
+                goal=goal,
+                difficulty=difficulty(float(clear[0]), float(clear[1])),
+            )
+    raise PlanningError(f"{family} seed {seed}: no valid start and goal in {scene_attempts} scenes")
+
+
+def _solve(ctx: _Ctx, target: Target, attempts: int) -> Array | None:
+    for _ in range(attempts):
+        q = ctx.ik(target())
+        if q is not None:
+            return q
+    return None
+
+
+def family_problems(
+    family: str,
+    robot: RobotModel,
+    spheres: SphereModel,
+    *,
+    split: str = "test",
+    count: int = 10,
+    first: int = 0,
+) -> list[Problem]:
+    return [
+        generate_problem(family, split_seed(split, first + i), robot, spheres) for i in range(count)
+    ]
