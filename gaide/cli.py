@@ -8,7 +8,7 @@ import sys
 
 from core.errors import GaideError
 from gaide import demo
-from gaide.commands import bench, perception, record, robot
+from gaide.commands import bench, perception, record, robot, scenes
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -19,6 +19,7 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_parser(sub)
     perception.add_parser(sub)
     robot.add_parser(sub)
+    scenes.add_parser(sub)
     bench.add_parser(sub)
     return parser
 

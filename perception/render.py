@@ -14,7 +14,7 @@ import logging
 import multiprocessing as mp
 import os
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -25,16 +25,12 @@ from core.errors import PerceptionError
 Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
-#: (vertices (V, 3), triangles (T, 3), RGB in [0, 1]) of a mesh to draw with the cloud
-MeshArrays = tuple[Array, npt.NDArray[np.int64], tuple[float, float, float]]
-
 
 def render_png(
     path: str | Path,
     points: Array,
     colors: Array | None = None,
     *,
-    meshes: Sequence[MeshArrays] = (),
     eye: tuple[float, float, float] = (1.5, -1.3, 1.2),
     lookat: tuple[float, float, float] = (0.3, 0.0, 0.1),
     size: tuple[int, int] = (960, 720),
@@ -42,7 +38,8 @@ def render_png(
     timeout_s: float = 60.0,
 ) -> str:
     """Write a PNG of ``points`` (N, 3) (base frame) with optional per-point RGB colours in
-    [0, 1], extra meshes and the base frame's axes of length ``axes`` (m), atomically.
+    [0, 1] and the base frame's axes of length ``axes`` (m), atomically. (Scenes with meshes
+    are ray-cast instead: Filament draws triangles slowly on the software rasterizer.)
     Returns which renderer drew it: "open3d" or "matplotlib"."""
     target = Path(path)
     tmp = target.with_name(target.stem + ".tmp.png")
@@ -50,7 +47,7 @@ def render_png(
     if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
         raise PerceptionError(f"nothing to draw: points must be (N, 3) with N > 0, got {pts.shape}")
     cols = _colors(pts, colors)
-    job = (str(tmp), pts, cols, list(meshes), eye, lookat, size, axes)
+    job = (str(tmp), pts, cols, eye, lookat, size, axes)
     # fork: the child inherits the imports (a spawned child spends seconds importing Open3D);
     # the parent never starts a renderer, so no GPU or Filament state is forked.
     proc = mp.get_context("fork").Process(target=_open3d_worker, args=job, daemon=True)
@@ -66,7 +63,7 @@ def render_png(
         tmp.replace(target)
         return "open3d"
     tmp.unlink(missing_ok=True)
-    _matplotlib_png(tmp, pts, cols, meshes, eye, lookat, size, axes)
+    _matplotlib_png(tmp, pts, cols, eye, lookat, size, axes)
     tmp.replace(target)
     return "matplotlib"
 
@@ -83,7 +80,6 @@ def _open3d_worker(
     tmp: str,
     points: Array,
     colors: Array,
-    meshes: list[MeshArrays],
     eye: tuple[float, float, float],
     lookat: tuple[float, float, float],
     size: tuple[int, int],
@@ -99,22 +95,11 @@ def _open3d_worker(
     scene.view.set_post_processing(False)
     unlit = o3d.visualization.rendering.MaterialRecord()
     unlit.shader = "defaultUnlit"
-    unlit.point_size = 3.0  # pixels; also the material of the meshes (vertex colours)
+    unlit.point_size = 3.0  # pixels
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     pcd.colors = o3d.utility.Vector3dVector(colors)
     scene.add_geometry("cloud", pcd, unlit)
-    # Unlit materials only, meshes shaded here from their normals: Filament's lit shader
-    # takes ~13 s per frame on the software rasterizer (measured), unlit ~0.4 s.
-    light = np.array([0.4, -0.3, 0.87])
-    for i, (vertices, triangles, rgb) in enumerate(meshes):
-        m = o3d.geometry.TriangleMesh(
-            o3d.utility.Vector3dVector(vertices),
-            o3d.utility.Vector3iVector(np.asarray(triangles, np.int32)),
-        )
-        m.compute_vertex_normals()
-        shade = 0.45 + 0.55 * np.abs(np.asarray(m.vertex_normals) @ light)
-        m.vertex_colors = o3d.utility.Vector3dVector(shade[:, None] * np.asarray(rgb)[None])
-        scene.add_geometry(f"mesh{i}", m, unlit)
+    # Unlit only: Filament's lit shader takes ~13 s a frame on the software rasterizer.
     if axes > 0:
         scene.add_geometry(
             "base_frame", o3d.geometry.TriangleMesh.create_coordinate_frame(size=axes), unlit
@@ -130,7 +115,6 @@ def _matplotlib_png(
     tmp: Path,
     points: Array,
     colors: Array,
-    meshes: Sequence[MeshArrays],
     eye: tuple[float, float, float],
     lookat: tuple[float, float, float],
     size: tuple[int, int],
@@ -145,8 +129,6 @@ def _matplotlib_png(
     ax = fig.add_subplot(projection="3d")
     pick = slice(None, None, max(1, len(points) // 40_000))
     ax.scatter(*points[pick].T, c=colors[pick], s=1.0, linewidths=0)
-    for vertices, triangles, rgb in meshes:
-        ax.plot_trisurf(*np.asarray(vertices).T, triangles=triangles, color=rgb, alpha=0.6)
     for axis, color in zip(np.eye(3) * axes, ("r", "g", "b"), strict=True):
         ax.quiver(0, 0, 0, *axis, color=color, linewidth=2)
     d = np.asarray(eye) - np.asarray(lookat)

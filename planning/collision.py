@@ -153,12 +153,18 @@ class SphereCollisionChecker:
         """(B, S, 3) world positions of the sphere centres for configurations Q (B, dof)."""
         return self.kin.points(Q, self.sphere_joint, self.sphere_local)
 
-    def world_clearance(self, Q: Array) -> Array:
-        """(B,) smallest (distance - radius) over the world-checked spheres (m)."""
-        centers = self.sphere_centers(Q)[:, self.world_spheres]
+    def world_clearance(self, Q: Array, links: tuple[str, ...] | None = None) -> Array:
+        """(B,) smallest (distance - radius) over the world-checked spheres (m), or over the
+        spheres of ``links`` only."""
+        idx = self.world_spheres
+        if links is not None:
+            for name in links:
+                self.robot.link(name)
+            idx = idx[np.isin(np.asarray(self.spheres.links)[idx], list(links))]
+        centers = self.sphere_centers(Q)[:, idx]
         B, S, _ = centers.shape
         d = self.world.distance(centers.reshape(-1, 3)).reshape(B, S)
-        return np.min(d - self.radii[self.world_spheres], axis=1)
+        return np.min(d - self.radii[idx], axis=1)
 
     def config_valid(self, Q: Array) -> Mask:
         """(B,) True where configuration Q[b] is valid (limits, world, self)."""

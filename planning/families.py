@@ -10,7 +10,7 @@ ends are valid and at least 5 cm apart at the end effector.
 - ``bins``: from one bin to another.
 - ``shelf_i``: from the table into a shelf level.
 - ``shelf_ii``: from one shelf level to another.
-- ``shelf_iii``: into a narrow slot (dividers), deep inside a lower shelf: the hardest.
+- ``shelf_iii``: deep into a narrow slot (dividers) of a lower, tighter shelf: the hardest.
 
 Seeds: train, validation and test use disjoint ranges (``SEED_RANGES``); a problem's
 randomness comes only from (family, seed), so any machine generates the same problem.
@@ -80,7 +80,7 @@ def _box(size: npt.ArrayLike, xyz: npt.ArrayLike, yaw: float = 0.0) -> Box:
 def _local(origin: npt.ArrayLike, yaw: float, xyz: npt.ArrayLike) -> Array:
     """A point given in a frame at ``origin`` turned by ``yaw`` about z, in the base frame."""
     c, s = np.cos(yaw), np.sin(yaw)
-    x, y, z = xyz
+    x, y, z = np.asarray(xyz, float)
     o = np.asarray(origin, float)
     return np.array([o[0] + c * x - s * y, o[1] + s * x + c * y, o[2] + z])
 
@@ -97,20 +97,28 @@ def open_box(
     c = np.asarray(centre, float)
     z0 = TABLE_TOP
     parts: list[Primitive] = [
-        _box([w + 2 * wall, d + 2 * wall, wall], _local(c, yaw, [0, 0, wall / 2]) + [0, 0, z0], yaw)
+        _box(
+            [w + 2 * wall, d + 2 * wall, wall],
+            _local(c, yaw, [0, 0, wall / 2]) + np.array([0.0, 0.0, z0]),
+            yaw,
+        )
     ]
     zc = z0 + wall + height / 2
     for sx in (-1, 1):
         parts.append(
             _box(
                 [wall, d + 2 * wall, height],
-                _local(c, yaw, [sx * (w + wall) / 2, 0, 0]) + [0, 0, zc],
+                _local(c, yaw, [sx * (w + wall) / 2, 0, 0]) + np.array([0.0, 0.0, zc]),
                 yaw,
             )
         )
     for sy in (-1, 1):
         parts.append(
-            _box([w, wall, height], _local(c, yaw, [0, sy * (d + wall) / 2, 0]) + [0, 0, zc], yaw)
+            _box(
+                [w, wall, height],
+                _local(c, yaw, [0, sy * (d + wall) / 2, 0]) + np.array([0.0, 0.0, zc]),
+                yaw,
+            )
         )
     return parts
 
@@ -122,7 +130,7 @@ class Shelf:
     width: float
     depth: float
     boards: tuple[float, ...]  # board top heights above the table (m), bottom first
-    slots: tuple[float, ...] = ()  # divider y positions (local), for narrow slots
+    slots: tuple[float, ...] = ()  # divider y positions (local) on the second level
 
     def parts(self, board: float = 0.02, wall: float = 0.02) -> list[Primitive]:
         out: list[Primitive] = []
@@ -155,7 +163,7 @@ class Shelf:
             )
         )
         for y in self.slots:
-            lo, hi = self.boards[0], self.boards[1]
+            lo, hi = self.boards[1], self.boards[2]
             out.append(
                 _box(
                     [self.depth, 0.015, hi - lo - board],
@@ -256,7 +264,8 @@ def _in_container(
         u = rng.uniform(-0.5, 0.5, 2) * (np.asarray(inner) - 0.12).clip(0.0)
         z = TABLE_TOP + floor + rng.uniform(0.07, max(0.08, height * 0.6))
         return down_pose(
-            _local(centre, yaw, [u[0], u[1], 0.0]) + [0, 0, z], yaw + rng.choice([0.0, np.pi / 2])
+            _local(centre, yaw, [u[0], u[1], 0.0]) + np.array([0.0, 0.0, z]),
+            yaw + rng.choice([0.0, np.pi / 2]),
         )
 
     return draw
@@ -276,7 +285,7 @@ def _in_shelf(
         y = rng.uniform(*(y_range or (-half, half)))
         x = shelf.depth * rng.uniform(*depth)
         z = TABLE_TOP + lo + (hi - lo) * rng.uniform(0.4, 0.6)
-        p = _local(shelf.front, shelf.yaw, [x, y, 0.0]) + [0, 0, z]
+        p = _local(shelf.front, shelf.yaw, [x, y, 0.0]) + np.array([0.0, 0.0, z])
         return reach_pose(
             p,
             shelf.yaw + rng.uniform(-0.15, 0.15),
@@ -306,7 +315,7 @@ def _shelf(
     w = rng.uniform(*width)
     dividers: tuple[float, ...] = ()
     if slots:
-        slot = rng.uniform(0.24, 0.3)
+        slot = rng.uniform(0.3, 0.36)
         dividers = (-slot / 2, slot / 2)
     return Shelf(front, heading, w, depth, boards, dividers)
 
@@ -353,22 +362,22 @@ def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Targ
                 if rng.random() < 0.5
                 else (prims, level, _table_target(rng))
             )
-        a, b = _in_shelf(rng, shelf, 0, (0.15, 0.45)), _in_shelf(rng, shelf, 1, (0.15, 0.45))
-        return (prims, a, b) if rng.random() < 0.5 else (prims, b, a)
+        low, high = _in_shelf(rng, shelf, 0, (0.15, 0.45)), _in_shelf(rng, shelf, 1, (0.15, 0.45))
+        return (prims, low, high) if rng.random() < 0.5 else (prims, high, low)
     if family == "shelf_iii":
         shelf = _shelf(
             rng,
-            spacing=(0.24, 0.27),
+            spacing=(0.28, 0.34),
             levels=2,
-            width=(0.7, 0.8),
-            depth=0.34,
-            dist=(0.42, 0.5),
+            width=(0.6, 0.8),
+            depth=0.32,
+            dist=(0.45, 0.55),
             slots=True,
         )
         prims += shelf.parts()
         slot_half = shelf.slots[1] - 0.1
-        deep = _in_shelf(rng, shelf, 0, (0.4, 0.55), (-slot_half, slot_half))
-        other = _in_shelf(rng, shelf, 1, (0.15, 0.4)) if rng.random() < 0.6 else _table_target(rng)
+        deep = _in_shelf(rng, shelf, 1, (0.3, 0.45), (-slot_half, slot_half))
+        other = _in_shelf(rng, shelf, 0, (0.15, 0.4)) if rng.random() < 0.6 else _table_target(rng)
         return (prims, other, deep) if rng.random() < 0.5 else (prims, deep, other)
     raise PlanningError(f"unknown family '{family}'; valid: {list(FAMILIES)}")
 
@@ -401,7 +410,7 @@ def generate_problem(
             goal = ctx.ik(T_goal)
             if goal is None:
                 continue
-            clear = ctx.checker.world_clearance(np.stack([start, goal]))
+            clear = ctx.checker.world_clearance(np.stack([start, goal]), links=_hand_links(robot))
             return Problem(
                 name=f"{family}-{seed}",
                 family=family,
@@ -412,6 +421,15 @@ def generate_problem(
                 difficulty=difficulty(float(clear[0]), float(clear[1])),
             )
     raise PlanningError(f"{family} seed {seed}: no valid start and goal in {scene_attempts} scenes")
+
+
+def _hand_links(robot: RobotModel) -> tuple[str, ...]:
+    """The links of the last three joints (the wrist and what it carries): tightness is about
+    the hand's surroundings, not the shoulder that always sits near the table."""
+    last = set(range(robot.dof - 2, robot.dof + 1))
+    return tuple(
+        n for n, link in robot.links.items() if link.joint_id in last and n in robot.link_meshes
+    )
 
 
 def _solve(ctx: _Ctx, target: Target, attempts: int) -> Array | None:

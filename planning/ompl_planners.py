@@ -1,0 +1,352 @@
+"""OMPL's geometric planners behind the project's :class:`~planning.planner.Planner` protocol.
+
+``rrtconnect`` (the paper's Bi-RRT) stops at its first solution; ``rrtstar``,
+``informed_rrtstar``, ``bitstar`` and ``aorrtc`` are anytime and use the whole budget: the
+path-length objective gets a cost threshold of 0 rad, which no path reaches, so only the
+budget ends them.
+
+OMPL sees the project's checker twice: as the state validity checker (one configuration per
+call) and as the motion validator (one straight joint-space edge per call, checked by
+:meth:`~planning.collision.SphereCollisionChecker.edges_valid` at the checker's resolution, all
+samples in one vectorized batch). OMPL's own discrete motion checking is never used, so a
+path OMPL accepts is a path the project's checker accepts.
+
+Randomness: OMPL has one process-wide seed generator from which every OMPL random generator
+takes its seed when it is created. :meth:`OmplPlanner.plan` reseeds it from the caller's
+generator before it creates anything, so a call is reproducible as far as OMPL is: RRT-Connect
+returns the same path for the same seed; an anytime planner finds the same first solution,
+but how far it improves it depends on how many iterations fit in the (wall-clock) budget.
+Plans running concurrently in threads of one process share the seed generator and are not
+reproducible.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from ompl import base as ob
+from ompl import geometric as og
+from ompl import util as ou
+
+from core.errors import PlanningError
+from planning.collision import SphereCollisionChecker
+from planning.planner import Array, PlanResult, PlanStatus, check_endpoints
+
+log = logging.getLogger(__name__)
+
+#: Planner name -> OMPL geometric planner class name.
+_OMPL_CLASSES = {
+    "rrtconnect": "RRTConnect",
+    "rrtstar": "RRTstar",
+    "informed_rrtstar": "InformedRRTstar",
+    "bitstar": "BITstar",
+    "aorrtc": "AORRTC",
+}
+PLANNER_NAMES: tuple[str, ...] = tuple(_OMPL_CLASSES)
+#: The asymptotically optimal planners, which refine their solution until the budget ends.
+ANYTIME_PLANNERS: frozenset[str] = frozenset(PLANNER_NAMES) - {"rrtconnect"}
+
+# Share of the budget an anytime planner leaves to the path simplifier when simplify=True
+# (RRT-Connect leaves whatever it did not use).
+_SIMPLIFY_SHARE = 0.1
+# Largest distance (rad) OMPL's solution may end from the requested start or goal: OMPL's
+# goal test is exact up to machine epsilon, so anything larger means a wrong solution.
+_ENDPOINT_TOL = 1e-6
+
+
+def make_planner(name: str, *, simplify: bool = False) -> OmplPlanner:
+    """The OMPL planner called ``name`` (one of :data:`PLANNER_NAMES`)."""
+    return OmplPlanner(name, simplify=simplify)
+
+
+@dataclass
+class _Counters:
+    """What the callbacks count during one plan call."""
+
+    validity_calls: int = 0
+    validity_time_s: float = 0.0  # s inside the state validity callback
+    motion_checks: int = 0
+    invalid_motions: int = 0
+    motion_time_s: float = 0.0  # s inside the motion validator
+    first_solution_s: float | None = None  # s from the start of the call
+    first_solution_cost: float | None = None  # rad
+    cost_trace: list[tuple[float, float]] = field(default_factory=list)  # (s, rad)
+    expired: bool = False  # the budget ended the solve
+
+
+class _EdgeValidator(ob.MotionValidator):  # type: ignore[misc]
+    """OMPL motion validator: one straight joint-space edge through ``edges_valid``."""
+
+    def __init__(
+        self, si: Any, checker: SphereCollisionChecker, dof: int, counters: _Counters
+    ) -> None:
+        super().__init__(si)
+        self._checker = checker
+        self._q0 = np.zeros((1, dof))
+        self._q1 = np.zeros((1, dof))
+        self._dims = range(dof)
+        self._counters = counters
+
+    def checkMotion(self, s1: Any, s2: Any) -> bool:
+        t = time.perf_counter()
+        q0, q1 = self._q0[0], self._q1[0]
+        for i in self._dims:
+            q0[i] = s1[i]
+            q1[i] = s2[i]
+        ok = bool(self._checker.edges_valid(self._q0, self._q1)[0])
+        c = self._counters
+        c.motion_checks += 1
+        c.invalid_motions += not ok
+        c.motion_time_s += time.perf_counter() - t
+        return ok
+
+
+def _validity_callback(
+    checker: SphereCollisionChecker, dof: int, counters: _Counters
+) -> Callable[[Any], bool]:
+    """OMPL state validity callback: one configuration, in a reused (1, dof) buffer."""
+    buf = np.zeros((1, dof))
+    row = buf[0]
+    dims = range(dof)
+
+    def valid(state: Any) -> bool:
+        t = time.perf_counter()
+        for i in dims:
+            row[i] = state[i]
+        ok = bool(checker.config_valid(buf)[0])
+        counters.validity_calls += 1
+        counters.validity_time_s += time.perf_counter() - t
+        return ok
+
+    return valid
+
+
+@contextlib.contextmanager
+def _ompl_log_level(level: Any) -> Iterator[None]:
+    """OMPL's (process-wide) log level set to ``level`` for the block, then restored."""
+    previous = ou.getLogLevel()
+    ou.setLogLevel(level)
+    try:
+        yield
+    finally:
+        ou.setLogLevel(previous)
+
+
+def _seed_ompl(seed: int) -> None:
+    """Reseed OMPL's seed generator. OMPL logs an error when generators already exist (it
+    cannot reseed those); every generator a plan call uses is created after this, so the
+    message does not apply here and is silenced."""
+    with _ompl_log_level(ou.LogLevel.LOG_NONE):
+        ou.RNG.setSeed(seed)
+
+
+def _state(space: Any, q: Array) -> Any:
+    s = space.allocState()
+    for i, v in enumerate(q):
+        s[i] = float(v)
+    return s
+
+
+def _path_array(path: Any, dof: int) -> Array:
+    """(K, dof) rad from an OMPL PathGeometric."""
+    out = np.empty((path.getStateCount(), dof))
+    for k in range(out.shape[0]):
+        s = path.getState(k)
+        out[k] = [s[i] for i in range(dof)]
+    return out
+
+
+class OmplPlanner:
+    """One of OMPL's geometric planners (see :data:`PLANNER_NAMES`) as a project planner.
+
+    ``simplify``: run OMPL's PathSimplifier (shortcutting and vertex reduction) on the
+    solution within the budget; anytime planners then stop their search at 90 % of it.
+    """
+
+    def __init__(self, name: str, *, simplify: bool = False) -> None:
+        if name not in _OMPL_CLASSES:
+            raise PlanningError(f"unknown OMPL planner '{name}'; valid: {list(PLANNER_NAMES)}")
+        self.name = name
+        self.simplify = simplify
+        self.anytime = name in ANYTIME_PLANNERS
+
+    def __repr__(self) -> str:
+        return f"OmplPlanner({self.name!r}, simplify={self.simplify})"
+
+    def plan(
+        self,
+        checker: SphereCollisionChecker,
+        start: Array,
+        goal: Array,
+        *,
+        budget_s: float,
+        rng: np.random.Generator,
+    ) -> PlanResult:
+        """Plan from ``start`` to ``goal`` (dof,) rad within ``budget_s`` seconds of wall time
+        (set-up included). OMPL's seed is drawn from ``rng``."""
+        t0 = time.perf_counter()
+        if not (math.isfinite(budget_s) and budget_s > 0):
+            raise PlanningError(f"budget_s must be a finite number of seconds > 0, got {budget_s}")
+        robot = checker.robot
+        start = robot.as_configuration(start, "start")
+        goal = robot.as_configuration(goal, "goal")
+        bad = check_endpoints(checker, start, goal)
+        if bad is not None:
+            return PlanResult(self.name, bad[0], None, time.perf_counter() - t0, detail=bad[1])
+        seed = int(rng.integers(1, 2**31 - 1))
+        with _ompl_log_level(ou.LogLevel.LOG_WARN):
+            status, path, detail, stats = self._solve(checker, start, goal, t0, budget_s, seed)
+        elapsed = time.perf_counter() - t0
+        log.debug(
+            "%s: %s in %.3f s (budget %.3f s), %d motion checks",
+            self.name,
+            status.value,
+            elapsed,
+            budget_s,
+            stats["motion_checks"],
+        )
+        return PlanResult(self.name, status, path, elapsed, detail=detail, stats=stats)
+
+    def _solve(
+        self,
+        checker: SphereCollisionChecker,
+        start: Array,
+        goal: Array,
+        t0: float,
+        budget_s: float,
+        seed: int,
+    ) -> tuple[PlanStatus, Array | None, str, dict[str, Any]]:
+        robot = checker.robot
+        dof = robot.dof
+        deadline = t0 + budget_s
+        solve_deadline = deadline
+        if self.simplify and self.anytime:
+            solve_deadline = t0 + (1.0 - _SIMPLIFY_SHARE) * budget_s
+        _seed_ompl(seed)
+
+        space = ob.RealVectorStateSpace(dof)
+        bounds = ob.RealVectorBounds(dof)
+        for i in range(dof):
+            bounds.setLow(i, float(robot.lower[i]))
+            bounds.setHigh(i, float(robot.upper[i]))
+        space.setBounds(bounds)
+        si = ob.SpaceInformation(space)
+        counters = _Counters()
+        si.setStateValidityChecker(_validity_callback(checker, dof, counters))
+        validator = _EdgeValidator(si, checker, dof, counters)
+        si.setMotionValidator(validator)
+        si.setup()
+
+        pdef = ob.ProblemDefinition(si)
+        pdef.setStartAndGoalStates(_state(space, start), _state(space, goal))
+        objective = ob.PathLengthOptimizationObjective(si)
+        # No path is shorter than 0 rad: the objective is never satisfied, so anytime
+        # planners do not stop before the budget.
+        objective.setCostThreshold(ob.Cost(0.0))
+        pdef.setOptimizationObjective(objective)
+        planner = getattr(og, _OMPL_CLASSES[self.name])(si)
+        planner.setProblemDefinition(pdef)
+        planner.setup()
+
+        best_cost = planner.bestCost if self.anytime else None
+
+        def terminate() -> bool:
+            # Evaluated by the planner once per iteration: it records the anytime planners'
+            # progress (which OMPL's Python bindings give no callback for) and ends the solve.
+            now = time.perf_counter()
+            if best_cost is not None:
+                cost = float(best_cost().value())
+                trace = counters.cost_trace
+                if math.isfinite(cost) and (not trace or cost < trace[-1][1]):
+                    if not trace:
+                        counters.first_solution_s = now - t0
+                        counters.first_solution_cost = cost
+                    trace.append((now - t0, cost))
+            if now >= solve_deadline:
+                counters.expired = True
+                return True
+            return False
+
+        ompl_status = planner.solve(ob.PlannerTerminationCondition(terminate))
+        solved_at = time.perf_counter()
+        stats: dict[str, Any] = {
+            "seed": seed,
+            "ompl_status": ompl_status.asString(),
+            "solve_s": solved_at - t0,
+        }
+        exact = (
+            ompl_status.getStatus() == ob.PlannerStatus.EXACT_SOLUTION and pdef.hasExactSolution()
+        )
+        path: Array | None = None
+        if exact:
+            solution = og.PathGeometric(pdef.getSolutionPath())
+            stats["raw_cost"] = float(solution.length())
+            stats["raw_waypoints"] = int(solution.getStateCount())
+            if not self.anytime:
+                counters.first_solution_s = solved_at - t0
+                counters.first_solution_cost = stats["raw_cost"]
+            if self.simplify:
+                remaining = deadline - time.perf_counter()
+                simplifier = og.PathSimplifier(si, pdef.getGoal(), objective)
+                if remaining > 0:
+                    simplifier.simplify(solution, remaining, False)
+                stats["simplify_s"] = time.perf_counter() - solved_at
+            path = _path_array(solution, dof)
+        elif pdef.hasApproximateSolution():
+            stats["approximate_gap"] = float(pdef.getSolutionDifference())  # rad from goal
+        stats.update(
+            validity_calls=counters.validity_calls,
+            validity_time_s=counters.validity_time_s,
+            motion_checks=counters.motion_checks,
+            invalid_motions=counters.invalid_motions,
+            motion_time_s=counters.motion_time_s,
+            first_solution_s=counters.first_solution_s,
+            first_solution_cost=counters.first_solution_cost,
+        )
+        if self.anytime:
+            stats["cost_trace"] = counters.cost_trace
+        if hasattr(planner, "numIterations"):
+            stats["iterations"] = int(planner.numIterations())
+
+        if path is None:
+            if counters.expired:
+                return PlanStatus.TIMEOUT, None, f"no exact solution in {budget_s:.3f} s", stats
+            return (
+                PlanStatus.FAILED,
+                None,
+                f"OMPL {self.name} stopped early: {stats['ompl_status']}",
+                stats,
+            )
+        return self._finish(checker, path, start, goal, stats)
+
+    def _finish(
+        self,
+        checker: SphereCollisionChecker,
+        path: Array,
+        start: Array,
+        goal: Array,
+        stats: dict[str, Any],
+    ) -> tuple[PlanStatus, Array | None, str, dict[str, Any]]:
+        """The solution with its ends set to the exact inputs, and checked once more."""
+        gap = max(float(np.linalg.norm(path[0] - start)), float(np.linalg.norm(path[-1] - goal)))
+        if len(path) == 1:  # start == goal: OMPL's path is the one state
+            path = np.concatenate([path, path])
+        if gap > _ENDPOINT_TOL:
+            return PlanStatus.FAILED, None, f"OMPL's path ends {gap:.3g} rad off", stats
+        path[0], path[-1] = start, goal
+        bad = checker.first_invalid_edge(path)
+        if bad is not None:
+            return (
+                PlanStatus.FAILED,
+                None,
+                f"OMPL's path has edge {bad} that the checker rejects",
+                stats,
+            )
+        return PlanStatus.SUCCESS, path, "", stats
