@@ -255,14 +255,17 @@ class OmplPlanner:
         planner.setProblemDefinition(pdef)
         planner.setup()
 
-        best_cost = planner.bestCost if self.anytime else None
+        # Read through a holder that is emptied after the solve: AORRTC keeps its termination
+        # condition, and a closure holding the planner would make a reference cycle through
+        # C++ that Python cannot collect.
+        best_cost: list[Callable[[], Any]] = [planner.bestCost] if self.anytime else []
 
         def terminate() -> bool:
             # Evaluated by the planner once per iteration: it records the anytime planners'
             # progress (which OMPL's Python bindings give no callback for) and ends the solve.
             now = time.perf_counter()
-            if best_cost is not None:
-                cost = float(best_cost().value())
+            if best_cost:
+                cost = float(best_cost[0]().value())
                 trace = counters.cost_trace
                 if math.isfinite(cost) and (not trace or cost < trace[-1][1]):
                     if not trace:
@@ -275,6 +278,7 @@ class OmplPlanner:
             return False
 
         ompl_status = planner.solve(ob.PlannerTerminationCondition(terminate))
+        best_cost.clear()
         solved_at = time.perf_counter()
         stats: dict[str, Any] = {
             "seed": seed,

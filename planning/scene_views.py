@@ -17,8 +17,15 @@ Array = npt.NDArray[np.float64]
 
 
 def surface_cloud(world: PrimitiveWorld, n: int, rng: np.random.Generator) -> Array:
-    """(n, 3) points on the obstacles' surfaces, spread by area (base frame)."""
-    return world.sample_surface(n, rng)
+    """(n, 3) points on the obstacles' visible surfaces, spread by area (base frame): faces
+    buried inside another obstacle (a shelf board's end inside a side wall) are left out."""
+    out = np.zeros((0, 3))
+    for _ in range(8):
+        pts = world.sample_surface(int(n * 1.5) + 16, rng)
+        out = np.concatenate([out, pts[world.distance(pts) > -1e-6]])
+        if len(out) >= n:
+            return out[:n]
+    raise PlanningError("the obstacles' surfaces are almost all buried inside each other")
 
 
 def camera_view(
