@@ -9,7 +9,9 @@ OMPL sees the project's checker twice: as the state validity checker (one config
 call) and as the motion validator (one straight joint-space edge per call, checked by
 :meth:`~planning.collision.SphereCollisionChecker.edges_valid` at the checker's resolution, all
 samples in one vectorized batch). OMPL's own discrete motion checking is never used, so a
-path OMPL accepts is a path the project's checker accepts.
+path OMPL accepts is a path the project's checker accepts. The budget is enforced by the
+termination condition and, for planners that check it only between long inner loops, by the
+callbacks, which refuse every state and motion once the budget is spent.
 
 Randomness: OMPL has one process-wide seed generator from which every OMPL random generator
 takes its seed when it is created. :meth:`OmplPlanner.plan` reseeds it from the caller's
@@ -79,6 +81,11 @@ class _Counters:
     first_solution_cost: float | None = None  # rad
     cost_trace: list[tuple[float, float]] = field(default_factory=list)  # (s, rad)
     expired: bool = False  # the budget ended the solve
+    # Some planners (AORRTC) consult their termination condition only between long inner
+    # loops; after this perf_counter time the callbacks refuse every state and motion, so
+    # that the solve returns promptly. None while no solve runs.
+    cutoff: float | None = None
+    refused: int = 0  # states and motions refused after the cutoff
 
 
 class _EdgeValidator(ob.MotionValidator):  # type: ignore[misc]
@@ -96,12 +103,15 @@ class _EdgeValidator(ob.MotionValidator):  # type: ignore[misc]
 
     def checkMotion(self, s1: Any, s2: Any) -> bool:
         t = time.perf_counter()
+        c = self._counters
+        if c.cutoff is not None and t > c.cutoff:
+            c.refused += 1
+            return False
         q0, q1 = self._q0[0], self._q1[0]
         for i in self._dims:
             q0[i] = s1[i]
             q1[i] = s2[i]
         ok = bool(self._checker.edges_valid(self._q0, self._q1)[0])
-        c = self._counters
         c.motion_checks += 1
         c.invalid_motions += not ok
         c.motion_time_s += time.perf_counter() - t
@@ -118,6 +128,9 @@ def _validity_callback(
 
     def valid(state: Any) -> bool:
         t = time.perf_counter()
+        if counters.cutoff is not None and t > counters.cutoff:
+            counters.refused += 1
+            return False
         for i in dims:
             row[i] = state[i]
         ok = bool(checker.config_valid(buf)[0])
@@ -277,7 +290,9 @@ class OmplPlanner:
                 return True
             return False
 
+        counters.cutoff = solve_deadline
         ompl_status = planner.solve(ob.PlannerTerminationCondition(terminate))
+        counters.cutoff = None
         best_cost.clear()
         solved_at = time.perf_counter()
         stats: dict[str, Any] = {
@@ -311,6 +326,7 @@ class OmplPlanner:
             motion_checks=counters.motion_checks,
             invalid_motions=counters.invalid_motions,
             motion_time_s=counters.motion_time_s,
+            refused_after_budget=counters.refused,
             first_solution_s=counters.first_solution_s,
             first_solution_cost=counters.first_solution_cost,
         )
@@ -320,7 +336,7 @@ class OmplPlanner:
             stats["iterations"] = int(planner.numIterations())
 
         if path is None:
-            if counters.expired:
+            if counters.expired or solved_at >= solve_deadline:
                 return PlanStatus.TIMEOUT, None, f"no exact solution in {budget_s:.3f} s", stats
             return (
                 PlanStatus.FAILED,

@@ -83,21 +83,29 @@ class PrimitiveWorld:
         return len(self.primitives)
 
     def distance(self, points: Array) -> Array:
-        """Signed distance (N,) from points (N, 3) to the nearest obstacle (m); +inf if none."""
+        """Signed distance (N,) from points (N, 3) to the nearest obstacle (m); +inf if none.
+
+        Computed on coordinate rows (3, N): numpy's reductions over a short last axis
+        (``max(axis=1)`` on (N, 3)) cost more than all the arithmetic (measured 2.5x).
+        """
         out = np.full(points.shape[0], np.inf)
-        for j in range(len(self._box_t)):
-            local = np.abs((points - self._box_t[j]) @ self._box_R[j]) - self._box_half[j]
-            outside = np.sqrt(np.sum(np.maximum(local, 0.0) ** 2, axis=1))
-            np.minimum(out, outside + np.minimum(local.max(axis=1), 0.0), out=out)
-        for j in range(len(self._cyl_t)):
-            local = (points - self._cyl_t[j]) @ self._cyl_R[j]
-            dr = np.hypot(local[:, 0], local[:, 1]) - self._cyl_rh[j, 0]
-            dz = np.abs(local[:, 2]) - self._cyl_rh[j, 1]
-            outside = np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0))
+        pts = np.ascontiguousarray(points.T)  # (3, N)
+        for R, t, half in zip(self._box_R, self._box_t, self._box_half, strict=True):
+            lx, ly, lz = np.abs(R.T @ (pts - t[:, None])) - half[:, None]
+            outside = np.sqrt(
+                np.maximum(lx, 0.0) ** 2 + np.maximum(ly, 0.0) ** 2 + np.maximum(lz, 0.0) ** 2
+            )
+            inside = np.minimum(np.maximum(np.maximum(lx, ly), lz), 0.0)
+            np.minimum(out, outside + inside, out=out)
+        for R, t, (radius, half_h) in zip(self._cyl_R, self._cyl_t, self._cyl_rh, strict=True):
+            lx, ly, lz = R.T @ (pts - t[:, None])
+            dr = np.sqrt(lx**2 + ly**2) - radius
+            dz = np.abs(lz) - half_h
+            outside = np.sqrt(np.maximum(dr, 0.0) ** 2 + np.maximum(dz, 0.0) ** 2)
             np.minimum(out, outside + np.minimum(np.maximum(dr, dz), 0.0), out=out)
-        for j in range(len(self._sph_c)):
-            d = np.linalg.norm(points - self._sph_c[j], axis=1) - self._sph_r[j]
-            np.minimum(out, d, out=out)
+        for c, radius in zip(self._sph_c, self._sph_r, strict=True):
+            d = pts - c[:, None]
+            np.minimum(out, np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2) - radius, out=out)
         return out
 
     def sample_surface(self, n: int, rng: np.random.Generator) -> Array:

@@ -57,6 +57,7 @@ def camera_view(
             np.ascontiguousarray(mesh.faces, np.int32)
         )
         scene.add_triangles(tmesh)
+
     def vec(v: npt.ArrayLike) -> o3d.core.Tensor:
         return o3d.core.Tensor.from_numpy(np.asarray(v, np.float32))
 

@@ -44,7 +44,7 @@ def _drop_repeats(path: Array) -> Array:
     keep = np.r_[True, np.any(path[1:] != path[:-1], axis=1)]
     keep[-1] = True
     out = path[keep]
-    if len(out) >= 2 and np.array_equal(out[-1], out[-2]):
+    if len(out) > 2 and np.array_equal(out[-1], out[-2]):
         # The goal repeated its predecessor: keep the goal row itself.
         out = np.delete(out, -2, axis=0)
     return out
@@ -82,9 +82,9 @@ def _point_at(
 
 def _shortcut_round(
     path: Array, checker: CollisionChecker, rng: np.random.Generator, batch: int
-) -> tuple[Array, int]:
+) -> Array:
     """One batched round: ``batch`` random shortcuts checked together, the best disjoint
-    ones applied. Returns the new path and the number of shortcuts applied."""
+    ones applied. Returns the new path."""
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
     s = np.sort(rng.uniform(0.0, arc[-1], size=(batch, 2)), axis=1)
     ia, pa = _point_at(path, arc, s[:, 0])
@@ -93,7 +93,7 @@ def _shortcut_round(
     saving = (s[:, 1] - s[:, 0]) - np.linalg.norm(pb - pa, axis=1)
     cand = np.flatnonzero((ib > ia) & (saving > _MIN_SAVING))
     if cand.size == 0:
-        return path, 0
+        return path
     # Each shortcut adds three edges: the kept piece of edge ia up to pa, the shortcut, and
     # the kept piece of edge ib from pb. All are checked, in one batch.
     q0 = np.concatenate([path[ia[cand]], pa[cand], pb[cand]])
@@ -101,7 +101,7 @@ def _shortcut_round(
     ok = checker.edges_valid(q0, q1).reshape(3, -1).all(axis=0)
     good = cand[ok]
     if good.size == 0:
-        return path, 0
+        return path
     # The largest savings first, each on edges no other taken shortcut touches.
     taken: list[int] = []
     for c in good[np.argsort(-saving[good])]:
@@ -114,7 +114,7 @@ def _shortcut_round(
         pieces += [path[v : ia[c] + 1], pa[c][None], pb[c][None]]
         v = int(ib[c]) + 1
     pieces.append(path[v:])
-    return _drop_repeats(np.concatenate(pieces)), len(taken)
+    return _drop_repeats(np.concatenate(pieces))
 
 
 def remove_redundant(path: Array, checker: CollisionChecker) -> Array:
@@ -148,20 +148,21 @@ def shortcut(
     batch: int = 16,
     budget_s: float = math.inf,
     patience: int = 8,
+    tolerance: float = 1e-3,
 ) -> Array:
     """Shorten a valid path (K, dof) rad by random shortcutting, then drop redundant
     waypoints. Returns a (K', dof) path with the same first and last rows, never longer,
     every new edge accepted by the checker.
 
     ``iterations`` bounds the number of candidate shortcuts drawn, ``batch`` of them per
-    vectorized check; it stops earlier after ``patience`` rounds in a row without an
-    improvement, or when ``budget_s`` seconds of wall time are spent (the final waypoint
-    removal is not counted).
+    vectorized check; it stops earlier, converged, after ``patience`` rounds in a row that
+    each shortened the path by less than ``tolerance`` rad, or when ``budget_s`` seconds of
+    wall time are spent (the final waypoint removal is not counted).
     """
-    if iterations < 0 or batch < 1 or patience < 1:
+    if iterations < 0 or batch < 1 or patience < 1 or tolerance < 0:
         raise PlanningError(
-            f"need iterations >= 0, batch >= 1, patience >= 1; got {iterations}, {batch}, "
-            f"{patience}"
+            "need iterations >= 0, batch >= 1, patience >= 1, tolerance >= 0 rad; got "
+            f"{iterations}, {batch}, {patience}, {tolerance}"
         )
     if not budget_s > 0:
         raise PlanningError(f"budget_s must be > 0 s, got {budget_s}")
@@ -173,10 +174,10 @@ def shortcut(
         if time.perf_counter() >= deadline:
             break
         n = min(batch, iterations - drawn)
-        p, applied = _shortcut_round(p, checker, rng, n)
+        before = path_length(p)
+        p = _shortcut_round(p, checker, rng, n)
         drawn += n
-        idle = 0 if applied else idle + 1
+        idle = 0 if before - path_length(p) >= tolerance else idle + 1
     p = remove_redundant(p, checker)
-    p[0], p[-1] = original[0], original[-1]
     # Rounding in the arc-length arithmetic must not make the result longer.
     return p if path_length(p) <= path_length(original) else original

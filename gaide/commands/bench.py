@@ -26,6 +26,28 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     per.add_argument("--quick", action="store_true", help="fewer frames and poses (a smoke test)")
     per.add_argument("--seed", type=int, default=0)
     per.set_defaults(func=cmd_perception)
+    pla = bsub.add_parser("planning", help="planners on the task families (the paper's Table I)")
+    pla.add_argument("--families", default="all", help="comma-separated families or 'all'")
+    pla.add_argument("--planners", default="rrtconnect", help="comma-separated planner names")
+    pla.add_argument("--problems", type=int, default=10, help="problems per family")
+    pla.add_argument(
+        "--budget",
+        default="5",
+        help="seconds per run, or 'auto' (the reference planner's mean time per family)",
+    )
+    pla.add_argument("--reference", default="gaide", help="the planner whose mean time 'auto' uses")
+    pla.add_argument("--split", choices=["train", "val", "test"], default="test")
+    pla.add_argument("--first", type=int, default=0, help="index of the first problem in the split")
+    pla.add_argument("--problem-file", help="YAML/JSON problem file instead of the families")
+    pla.add_argument("--workers", type=int, help="processes (default: one per core)")
+    pla.add_argument(
+        "--mesh-check", action="store_true", help="also check paths against PyBullet's meshes"
+    )
+    pla.add_argument("--robot", help="robot config YAML (default: UR5)")
+    pla.add_argument(
+        "--json", help="write results to this JSON file (a .md table and a .png plot beside it)"
+    )
+    pla.set_defaults(func=cmd_planning)
 
 
 def cmd_collision(args: argparse.Namespace) -> int:
@@ -87,4 +109,52 @@ def cmd_perception(args: argparse.Namespace) -> int:
     )
     if args.json:
         write_json(args.json, res)
+    return 0
+
+
+def cmd_planning(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from core.errors import PlanningError
+    from planning.families import parse_families
+    from planning.harness import HarnessCfg, run_harness
+    from planning.harness_report import markdown_table, plot, text_table
+    from planning.registry import parse_planners
+
+    if args.budget == "auto":
+        budget = None
+    else:
+        try:
+            budget = float(args.budget)
+        except ValueError as err:
+            raise PlanningError(f"--budget must be seconds or 'auto', got '{args.budget}'") from err
+    cfg = HarnessCfg(
+        families=tuple(parse_families(args.families)),
+        planners=tuple(parse_planners(args.planners)),
+        problems=args.problems,
+        budget_s=budget,
+        reference=args.reference,
+        split=args.split,
+        first=args.first,
+        mesh_check=args.mesh_check,
+        problem_file=Path(args.problem_file) if args.problem_file else None,
+        robot_config=Path(args.robot) if args.robot else None,
+        **({"workers": args.workers} if args.workers else {}),
+    )
+    result = run_harness(cfg, progress=tqdm)
+    print(text_table(result))
+    fig = result.figures()
+    print(
+        f"\n{fig['runs']} runs in {fig['wall_s']:.1f} s wall; planners {fig['planner_s']:.1f} s, "
+        f"harness overhead {100 * (fig['overhead_share'] or 0):.1f}% of it, cores busy "
+        f"{100 * (fig['core_utilisation'] or 0):.0f}%"
+    )
+    for note in result.notes:
+        print(f"note: {note}")
+    if args.json:
+        out = Path(args.json)
+        write_json(out, result.to_json())
+        out.with_suffix(".md").write_text(markdown_table(result) + "\n")
+        plot(result, out.with_suffix(".png"))
+        print(f"wrote {out}, {out.with_suffix('.md')}, {out.with_suffix('.png')}")
     return 0

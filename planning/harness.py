@@ -1,0 +1,277 @@
+"""The benchmark harness: every planner on the same problems, each returned path checked by
+the harness itself, the paper's Table I figures (T, C, S) per family and planner.
+
+Runs over a process pool (both cores busy), deterministic per problem seed: a run's
+randomness comes from (problem seed, planner name) only.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing as mp
+import os
+import time
+import zlib
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from core.errors import PlanningError
+from planning.families import FAMILIES, generate_problem, split_seed
+from planning.path_check import check_path
+from planning.planner import PlanStatus
+from planning.problem import Problem, load_problems, problem_from_dict
+from planning.registry import make_planner, planner_names
+from planning.robot_model import RobotModel, load_robot
+from planning.sphere_model import SphereModel
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, kw_only=True)
+class HarnessCfg:
+    families: tuple[str, ...] = FAMILIES
+    planners: tuple[str, ...] = ("rrtconnect",)
+    problems: int = 10  # per family
+    budget_s: float | None = 5.0  # None: "auto", the reference planner's mean time per family
+    reference: str = "gaide"  # whose mean time "auto" hands the others
+    fallback_budget_s: float = 5.0  # "auto" without the reference planner
+    split: str = "test"
+    first: int = 0  # index of the first problem in the split
+    workers: int = field(default_factory=lambda: os.cpu_count() or 1)
+    mesh_check: bool = False  # also check returned paths against PyBullet's meshes
+    problem_file: Path | None = None  # bring-your-own problems instead of the families
+    robot_config: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.problems < 1 or self.workers < 1:
+            raise PlanningError("need at least one problem per family and one worker")
+        if self.budget_s is not None and self.budget_s <= 0:
+            raise PlanningError(f"budget must be > 0 s, got {self.budget_s}")
+        valid = planner_names()
+        bad = [p for p in self.planners if p not in valid]
+        if bad:
+            raise PlanningError(f"unknown planners {bad}; valid: {valid}")
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    family: str
+    problem: str
+    seed: int
+    difficulty: str
+    planner: str
+    status: str  # PlanStatus value, or "bad_path" when the harness's check refused the path
+    success: bool  # the planner said SUCCESS and the harness's check passed
+    time_s: float
+    cost: float | None  # joint-space length (rad) of a checked path
+    budget_s: float
+    detail: str = ""
+    overhead_s: float = 0.0  # problem generation + path check (harness time, not planner time)
+
+
+# -- worker side -------------------------------------------------------------------------
+
+_ROBOT: tuple[RobotModel, SphereModel] | None = None
+
+
+def _init_worker(robot_config: str | None) -> None:
+    global _ROBOT
+    from planning.sphere_model import SphereModel
+
+    robot = load_robot(robot_config)
+    assert robot.config.spheres is not None
+    _ROBOT = (robot, SphereModel.load(robot.config.spheres))
+    try:
+        from ompl import util as ou
+
+        ou.setLogLevel(ou.LogLevel.LOG_NONE)
+    except ImportError:  # pragma: no cover - ompl is a dependency
+        pass
+
+
+@lru_cache(maxsize=64)
+def _problem(key: tuple[str, int]) -> Problem:
+    assert _ROBOT is not None
+    return generate_problem(key[0], key[1], *_ROBOT)
+
+
+def _run(task: tuple[dict[str, Any] | tuple[str, int], str, float, bool]) -> RunRecord:
+    spec, planner_name, budget, mesh_check = task
+    assert _ROBOT is not None
+    robot, spheres = _ROBOT
+    t0 = time.perf_counter()
+    problem = (
+        _problem(spec) if isinstance(spec, tuple) else problem_from_dict(spec, "problem", robot.dof)
+    )
+    gen_s = time.perf_counter() - t0
+    from planning.collision import SphereCollisionChecker
+
+    checker = SphereCollisionChecker(robot, spheres, problem.world)
+    rng = np.random.default_rng([problem.seed, zlib.crc32(planner_name.encode())])
+    result = make_planner(planner_name).plan(
+        checker, problem.start, problem.goal, budget_s=budget, rng=rng
+    )
+    t1 = time.perf_counter()
+    status, success, cost, detail = result.status.value, False, None, result.detail
+    if result.status is PlanStatus.SUCCESS:
+        check = check_path(
+            result.path,
+            problem.start,
+            problem.goal,
+            robot,
+            spheres,
+            problem.world,
+            meshes=mesh_check,
+        )
+        if check.ok:
+            success, cost = True, result.cost
+        else:
+            status, detail = "bad_path", check.detail
+    return RunRecord(
+        family=problem.family,
+        problem=problem.name,
+        seed=problem.seed,
+        difficulty=problem.difficulty,
+        planner=planner_name,
+        status=status,
+        success=success,
+        time_s=result.time_s,
+        cost=cost,
+        budget_s=budget,
+        detail=detail,
+        overhead_s=gen_s + time.perf_counter() - t1,
+    )
+
+
+# -- driver ------------------------------------------------------------------------------
+
+
+@dataclass
+class HarnessResult:
+    cfg: HarnessCfg
+    records: list[RunRecord]
+    budgets: dict[str, dict[str, float]]  # family -> planner -> budget (s)
+    wall_s: float
+    notes: list[str]
+
+    def summary(self) -> dict[str, dict[str, dict[str, Any]]]:
+        """{family: {planner: figures}} in the harness's JSON layout."""
+        out: dict[str, dict[str, dict[str, Any]]] = {}
+        for rec in self.records:
+            out.setdefault(rec.family, {}).setdefault(rec.planner, {})
+        for fam, per in out.items():
+            for planner in per:
+                runs = [r for r in self.records if r.family == fam and r.planner == planner]
+                bad = [
+                    r
+                    for r in runs
+                    if r.status in (PlanStatus.START_INVALID.value, PlanStatus.GOAL_INVALID.value)
+                ]
+                counted = [r for r in runs if r not in bad]
+                times = np.array([r.time_s for r in counted]) if counted else np.zeros(0)
+                costs = np.array([r.cost for r in counted if r.success and r.cost is not None])
+                per[planner] = {
+                    "n": len(counted),
+                    "bad_problems": len(bad),
+                    "success_rate": float(np.mean([r.success for r in counted]))
+                    if counted
+                    else 0.0,
+                    "time_mean_s": float(times.mean()) if len(times) else None,
+                    "time_std_s": float(times.std()) if len(times) else None,
+                    "time_median_s": float(np.median(times)) if len(times) else None,
+                    "cost_median": float(np.median(costs)) if len(costs) else None,
+                    "cost_mean": float(costs.mean()) if len(costs) else None,
+                    "budget_s": self.budgets.get(fam, {}).get(planner),
+                    "bad_paths": sum(r.status == "bad_path" for r in runs),
+                }
+        return out
+
+    def figures(self) -> dict[str, Any]:
+        planner_s = sum(r.time_s for r in self.records)
+        overhead_s = sum(r.overhead_s for r in self.records)
+        busy = planner_s + overhead_s
+        return {
+            "wall_s": self.wall_s,
+            "planner_s": planner_s,
+            "harness_overhead_s": overhead_s,
+            "overhead_share": overhead_s / planner_s if planner_s else None,
+            "core_utilisation": busy / (self.wall_s * self.cfg.workers) if self.wall_s else None,
+            "runs": len(self.records),
+        }
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "results": self.summary(),
+            "figures": self.figures(),
+            "budgets": self.budgets,
+            "notes": self.notes,
+            "config": {
+                k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(self.cfg).items()
+            },
+            "runs": [asdict(r) for r in self.records],
+        }
+
+
+def _specs(cfg: HarnessCfg, dof: int) -> list[tuple[str, dict[str, Any] | tuple[str, int]]]:
+    """(family, problem spec) for every problem of the benchmark."""
+    if cfg.problem_file is not None:
+        return [(p.family, p.to_dict()) for p in load_problems(cfg.problem_file, dof)]
+    return [
+        (fam, (fam, split_seed(cfg.split, cfg.first + i)))
+        for fam in cfg.families
+        for i in range(cfg.problems)
+    ]
+
+
+def run_harness(
+    cfg: HarnessCfg, progress: Callable[..., Iterable[Any]] | None = None
+) -> HarnessResult:
+    robot = load_robot(cfg.robot_config)
+    specs = _specs(cfg, robot.dof)
+    families = list(dict.fromkeys(f for f, _ in specs))
+    notes: list[str] = []
+    budgets: dict[str, dict[str, float]] = {f: {} for f in families}
+    records: list[RunRecord] = []
+    t0 = time.perf_counter()
+    ctx = mp.get_context("fork")
+    config = None if cfg.robot_config is None else str(cfg.robot_config)
+    with ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(config,)) as pool:
+
+        def run_all(tasks: list[tuple[Any, str, float, bool]]) -> None:
+            # longest first keeps both cores busy to the end
+            tasks.sort(key=lambda t: -t[2])
+            it = pool.imap_unordered(_run, tasks)
+            for rec in progress(it, total=len(tasks), desc="planning") if progress else it:
+                records.append(rec)
+
+        others = list(cfg.planners)
+        if cfg.budget_s is None and cfg.reference in cfg.planners:
+            ref_budget = cfg.fallback_budget_s
+            run_all([(spec, cfg.reference, ref_budget, cfg.mesh_check) for _, spec in specs])
+            for fam in families:
+                times = [
+                    r.time_s for r in records if r.family == fam and r.planner == cfg.reference
+                ]
+                budgets[fam][cfg.reference] = ref_budget
+                mean = float(np.mean(times)) if times else ref_budget
+                for p in cfg.planners:
+                    if p != cfg.reference:
+                        budgets[fam][p] = max(mean, 0.05)
+            others = [p for p in cfg.planners if p != cfg.reference]
+            notes.append(f"budget auto: each family's mean {cfg.reference} time")
+        else:
+            fixed = cfg.budget_s if cfg.budget_s is not None else cfg.fallback_budget_s
+            if cfg.budget_s is None:
+                notes.append(
+                    f"budget auto without '{cfg.reference}' in the planners: fixed {fixed} s"
+                )
+            for fam in families:
+                for p in cfg.planners:
+                    budgets[fam][p] = fixed
+        run_all([(spec, p, budgets[fam][p], cfg.mesh_check) for fam, spec in specs for p in others])
+    return HarnessResult(cfg, records, budgets, time.perf_counter() - t0, notes)

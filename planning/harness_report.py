@@ -1,0 +1,96 @@
+"""The harness's results as the paper shows them: Table I (T, C, S per family and planner),
+a Markdown table, and a plot of success, time and cost per family."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from planning.harness import HarnessResult
+
+LABELS = {
+    "tabletop": "TableTop", "box": "Box", "bins": "Bins",
+    "shelf_i": "Shelf I", "shelf_ii": "Shelf II", "shelf_iii": "Shelf III",
+}  # fmt: skip
+
+
+def _cell(fig: dict[str, Any]) -> tuple[str, str, str]:
+    if not fig or fig["n"] == 0:
+        return "-", "-", "-"
+    t = f"{fig['time_mean_s']:.2f}±{fig['time_std_s']:.2f} ({fig['time_median_s']:.2f})"
+    c = f"{fig['cost_median']:.2f}" if fig["cost_median"] is not None else "-"
+    s = f"{100 * fig['success_rate']:.0f}%"
+    return t, c, s
+
+
+def text_table(result: HarnessResult) -> str:
+    """Table I layout: one row per planner, T [s] mean±std (median), C (median rad), S per family."""
+    summary = result.summary()
+    families = list(summary)
+    planners = list(dict.fromkeys(p for fam in summary.values() for p in fam))
+    head = f"{'planner':<18}" + "".join(f"| {LABELS.get(f, f):^34} " for f in families)
+    sub = f"{'':<18}" + "".join(f"| {'T [s]':^20} {'C':>6} {'S':>5} " for _ in families)
+    lines = [head, sub, "-" * len(sub)]
+    for p in planners:
+        row = f"{p:<18}"
+        for f in families:
+            t, c, s = _cell(summary[f].get(p, {}))
+            row += f"| {t:^20} {c:>6} {s:>5} "
+        lines.append(row)
+    return "\n".join(lines)
+
+
+def markdown_table(result: HarnessResult) -> str:
+    summary = result.summary()
+    families = list(summary)
+    planners = list(dict.fromkeys(p for fam in summary.values() for p in fam))
+    head = "| planner | " + " | ".join(f"{LABELS.get(f, f)} T [s] | C | S" for f in families) + " |"
+    rule = "|---|" + "---|---|---|" * len(families)
+    rows = []
+    for p in planners:
+        cells = []
+        for f in families:
+            t, c, s = _cell(summary[f].get(p, {}))
+            cells.append(f"{t} | {c} | {s}")
+        rows.append(f"| {p} | " + " | ".join(cells) + " |")
+    return "\n".join([head, rule, *rows])
+
+
+def plot(result: HarnessResult, path: str | Path) -> None:
+    """Success and median time per family (bars), cost distribution of successful runs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    summary = result.summary()
+    families = list(summary)
+    planners = list(dict.fromkeys(p for fam in summary.values() for p in fam))
+    x = np.arange(len(families))
+    width = 0.8 / max(len(planners), 1)
+    fig, axes = plt.subplots(1, 3, figsize=(17, 4.8))
+    for k, p in enumerate(planners):
+        succ = [summary[f].get(p, {}).get("success_rate", 0.0) * 100 for f in families]
+        med = [summary[f].get(p, {}).get("time_median_s") or 0.0 for f in families]
+        axes[0].bar(x + k * width, succ, width, label=p)
+        axes[1].bar(x + k * width, med, width, label=p)
+    costs = [
+        [r.cost for r in result.records if r.planner == p and r.success and r.cost is not None]
+        for p in planners
+    ]
+    axes[2].boxplot([c if c else [np.nan] for c in costs], tick_labels=planners)
+    for ax, title in zip(axes[:2], ("success [%]", "median planning time [s]"), strict=True):
+        ax.set_xticks(x + 0.4 - width / 2, [LABELS.get(f, f) for f in families], rotation=20)
+        ax.set_title(title)
+    axes[1].set_yscale("log")
+    axes[2].set_title("path cost C [rad], successful runs")
+    axes[2].tick_params(axis="x", rotation=20)
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    target = Path(path)
+    tmp = target.with_name(target.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    tmp.replace(target)

@@ -1,0 +1,76 @@
+"""The harness's own check of a returned path, independent of the planner that made it.
+
+Finer than any planner checks (half the robot's edge resolution, against the exact
+primitive world), and optionally against the real meshes in PyBullet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from planning.collision import SphereCollisionChecker
+from planning.primitives import PrimitiveWorld
+from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+
+Array = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PathCheck:
+    ok: bool
+    detail: str = ""  # what failed: endpoints, which edge and why
+    bad_edge: int | None = None
+
+
+def check_path(
+    path: Array | None,
+    start: Array,
+    goal: Array,
+    robot: RobotModel,
+    spheres: SphereModel,
+    world: PrimitiveWorld,
+    *,
+    resolution_factor: float = 0.5,
+    meshes: bool = False,
+    mesh_step: float = 0.02,
+) -> PathCheck:
+    """Is ``path`` (K, dof) a valid path from start to goal? Endpoints must match (1e-6 rad),
+    every configuration be inside the limits, every edge be collision-free at
+    ``resolution_factor`` x the robot's edge resolution; with ``meshes``, PyBullet's mesh
+    check too, every ``mesh_step`` rad along the path."""
+    if path is None or len(path) < 2:
+        return PathCheck(False, "no path")
+    p = np.asarray(path, float)
+    if p.ndim != 2 or p.shape[1] != robot.dof or not np.all(np.isfinite(p)):
+        return PathCheck(False, f"path has shape {p.shape} or non-finite values")
+    if np.abs(p[0] - start).max() > 1e-6 or np.abs(p[-1] - goal).max() > 1e-6:
+        return PathCheck(False, "path does not start at the start and end at the goal")
+    checker = SphereCollisionChecker(
+        robot, spheres, world, resolution=robot.config.edge_resolution * resolution_factor
+    )
+    bad = checker.first_invalid_edge(p)
+    if bad is not None:
+        ok = checker.edges_valid(p[:-1], p[1:])
+        steps = checker.edge_steps(p[bad : bad + 1], p[bad + 1 : bad + 2])[0]
+        samples = p[bad] + np.linspace(0, 1, steps + 1)[:, None] * (p[bad + 1] - p[bad])
+        first = samples[np.flatnonzero(~checker.config_valid(samples))[0]]
+        return PathCheck(
+            False,
+            f"edge {bad} of {len(p) - 1} collides ({int((~ok).sum())} bad edges): "
+            f"{checker.diagnose(first)}",
+            bad,
+        )
+    if meshes:
+        from planning.mesh_reference import MeshReference
+
+        with MeshReference(robot, world) as ref:
+            for i in range(len(p) - 1):
+                n = max(1, int(np.ceil(np.abs(p[i + 1] - p[i]).max() / mesh_step)))
+                for f in np.linspace(0, 1, n + 1):
+                    if ref.collides(p[i] + f * (p[i + 1] - p[i])):
+                        return PathCheck(False, f"edge {i}: the meshes touch the world", i)
+    return PathCheck(True)

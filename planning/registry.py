@@ -1,0 +1,39 @@
+"""Planner names, as the CLI and the harness spell them, and how to make each planner."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from core.errors import PlanningError
+from planning.planner import Planner
+
+CLASSICAL = ("rrtconnect", "rrtstar", "informed_rrtstar", "bitstar", "aorrtc")
+
+
+def _factories() -> dict[str, Callable[[], Planner]]:
+    from planning.ompl_planners import OmplPlanner
+
+    out: dict[str, Callable[[], Planner]] = {}
+    for name in CLASSICAL:
+        out[name] = lambda name=name: OmplPlanner(name)  # type: ignore[misc]
+    return out
+
+
+def planner_names() -> list[str]:
+    return list(_factories())
+
+
+def make_planner(name: str) -> Planner:
+    factories = _factories()
+    if name not in factories:
+        raise PlanningError(f"unknown planner '{name}'; valid: {list(factories)}")
+    return factories[name]()
+
+
+def parse_planners(text: str) -> list[str]:
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    valid = planner_names()
+    bad = [n for n in names if n not in valid]
+    if bad or not names:
+        raise PlanningError(f"unknown planners {bad or [text]}; valid: {valid}")
+    return names
