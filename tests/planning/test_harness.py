@@ -1,0 +1,138 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from core.errors import PlanningError
+from planning import harness
+from planning.families import generate_problem, split_seed
+from planning.harness import HarnessCfg, run_harness
+from planning.harness_report import markdown_table, text_table
+from planning.path_check import check_path
+from planning.planner import PlanResult, PlanStatus
+from planning.problem import save_problems
+from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+from tests.conftest import run_cli
+
+
+def test_a_planted_colliding_path_is_rejected_with_its_edge(
+    robot: RobotModel, spheres: SphereModel
+) -> None:
+    p = generate_problem("box", split_seed("test", 0), robot, spheres)
+    # straight through: start -> a configuration folded into the table -> goal
+    through = np.array([0.0, 0.3, 0.0, 0.0, 0.0, 0.0])
+    path = np.stack([p.start, through, p.goal])
+    check = check_path(path, p.start, p.goal, robot, spheres, p.world)
+    assert not check.ok and check.bad_edge == 0
+    assert "edge 0 of 2 collides" in check.detail and "world" in check.detail
+    wrong_end = np.stack([p.start, p.start])
+    assert (
+        "does not start at the start and end at the goal"
+        in check_path(wrong_end, p.start, p.goal, robot, spheres, p.world).detail
+    )
+
+
+def test_a_planner_returning_a_colliding_path_counts_as_a_failure(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    class Liar:
+        name = "liar"
+
+        def plan(self, checker, start, goal, *, budget_s, rng):  # type: ignore[no-untyped-def]
+            bad = np.array([0.0, 0.3, 0.0, 0.0, 0.0, 0.0])
+            return PlanResult("liar", PlanStatus.SUCCESS, np.stack([start, bad, goal]), 0.01)
+
+    harness._init_worker(None)
+    monkeypatch.setattr(harness, "make_planner", lambda name: Liar())
+    rec = harness._run((("box", split_seed("test", 0)), "liar", 1.0, False))
+    assert rec.status == "bad_path" and not rec.success and rec.cost is None
+    assert "collides" in rec.detail
+
+
+def test_harness_runs_every_planner_on_the_same_problems(tmp_path: Path) -> None:
+    cfg = HarnessCfg(
+        families=("tabletop", "bins"),
+        planners=("rrtconnect", "rrtstar"),
+        problems=2,
+        budget_s=0.5,
+        workers=2,
+    )
+    result = run_harness(cfg)
+    summary = result.summary()
+    assert set(summary) == {"tabletop", "bins"}
+    for fam in summary.values():
+        assert set(fam) == {"rrtconnect", "rrtstar"}
+        for fig in fam.values():
+            assert fig["n"] == 2 and 0.0 <= fig["success_rate"] <= 1.0
+            assert {"time_median_s", "time_mean_s", "cost_median", "success_rate", "n"} <= set(fig)
+    problems = {(r.planner, r.problem) for r in result.records}
+    assert len(problems) == 8  # 2 planners x 2 families x 2 problems, each once
+    # anytime planners use their budget; RRT-Connect stops at its first solution
+    star = [r.time_s for r in result.records if r.planner == "rrtstar"]
+    assert min(star) >= 0.45
+    assert "TableTop" in text_table(result) and "| rrtconnect |" in markdown_table(result)
+    json.dumps(result.to_json())
+
+
+def test_harness_budget_auto_without_reference_is_fixed() -> None:
+    cfg = HarnessCfg(
+        families=("tabletop",),
+        planners=("rrtconnect",),
+        problems=1,
+        budget_s=None,
+        fallback_budget_s=0.3,
+        workers=1,
+    )
+    result = run_harness(cfg)
+    assert result.budgets["tabletop"]["rrtconnect"] == 0.3
+    assert "fixed 0.3 s" in result.notes[0]
+
+
+def test_harness_bad_problems_are_counted_not_solved(
+    robot: RobotModel, spheres: SphereModel, tmp_path: Path
+) -> None:
+    p = generate_problem("tabletop", split_seed("test", 1), robot, spheres)
+    from dataclasses import replace
+
+    folded = replace(p, name="bad-start", start=np.array([0.0, 0.3, 0.0, 0.0, 0.0, 0.0]))
+    path = tmp_path / "problems.yaml"
+    save_problems(path, [p, folded])
+    result = run_harness(
+        HarnessCfg(problem_file=path, planners=("rrtconnect",), budget_s=1.0, workers=1)
+    )
+    fig = result.summary()["tabletop"]["rrtconnect"]
+    assert fig["bad_problems"] == 1 and fig["n"] == 1
+    bad = next(r for r in result.records if r.problem == "bad-start")
+    assert bad.status == "start_invalid" and "world" in bad.detail
+
+
+def test_cli_bench_planning_and_bad_names(tmp_path: Path) -> None:
+    out = tmp_path / "bench.json"
+    proc = run_cli(
+        "bench",
+        "planning",
+        "--families",
+        "box",
+        "--planners",
+        "rrtconnect",
+        "--problems",
+        "1",
+        "--budget",
+        "1",
+        "--json",
+        str(out),
+    )
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(out.read_text())
+    assert 0.0 <= data["results"]["box"]["rrtconnect"]["success_rate"] <= 1.0
+    assert out.with_suffix(".md").exists() and out.with_suffix(".png").stat().st_size > 5000
+    proc = run_cli("bench", "planning", "--families", "kitchen")
+    assert proc.returncode == 7 and "valid: ['tabletop'" in proc.stderr
+    proc = run_cli("bench", "planning", "--planners", "rrt-connect")
+    assert proc.returncode == 7 and "rrtconnect" in proc.stderr
+    with pytest.raises(PlanningError, match="budget must be > 0"):
+        HarnessCfg(budget_s=0)
