@@ -87,6 +87,16 @@ class _Counters:
     cutoff: float | None = None
     refused: int = 0  # states and motions refused after the cutoff
 
+    def refuse(self) -> bool:
+        """Count a refusal past the cutoff; returns False (invalid) for the callback."""
+        if not self.refused:
+            # Planners and OMPL's path simplifier warn about the refused motions they meet
+            # (e.g. "Solution path may slightly touch on an invalid region"): expected now.
+            # The plan call restores the level.
+            ou.setLogLevel(ou.LogLevel.LOG_ERROR)
+        self.refused += 1
+        return False
+
 
 class _EdgeValidator(ob.MotionValidator):  # type: ignore[misc]
     """OMPL motion validator: one straight joint-space edge through ``edges_valid``."""
@@ -105,8 +115,7 @@ class _EdgeValidator(ob.MotionValidator):  # type: ignore[misc]
         t = time.perf_counter()
         c = self._counters
         if c.cutoff is not None and t > c.cutoff:
-            c.refused += 1
-            return False
+            return c.refuse()
         q0, q1 = self._q0[0], self._q1[0]
         for i in self._dims:
             q0[i] = s1[i]
@@ -129,8 +138,7 @@ def _validity_callback(
     def valid(state: Any) -> bool:
         t = time.perf_counter()
         if counters.cutoff is not None and t > counters.cutoff:
-            counters.refused += 1
-            return False
+            return counters.refuse()
         for i in dims:
             row[i] = state[i]
         ok = bool(checker.config_valid(buf)[0])
@@ -354,14 +362,16 @@ class OmplPlanner:
         goal: Array,
         stats: dict[str, Any],
     ) -> tuple[PlanStatus, Array | None, str, dict[str, Any]]:
-        """The solution with its ends set to the exact inputs, and checked once more."""
+        """The solution with its ends set to the exact inputs, checked once more (and
+        repaired where it can be)."""
         gap = max(float(np.linalg.norm(path[0] - start)), float(np.linalg.norm(path[-1] - goal)))
         if len(path) == 1:  # start == goal: OMPL's path is the one state
             path = np.concatenate([path, path])
         if gap > _ENDPOINT_TOL:
             return PlanStatus.FAILED, None, f"OMPL's path ends {gap:.3g} rad off", stats
         path[0], path[-1] = start, goal
-        bad = checker.first_invalid_edge(path)
+        path, repaired, bad = _repair(checker, path)
+        stats["repaired_edges"] = repaired
         if bad is not None:
             return (
                 PlanStatus.FAILED,
@@ -370,3 +380,29 @@ class OmplPlanner:
                 stats,
             )
         return PlanStatus.SUCCESS, path, "", stats
+
+
+def _repair(checker: SphereCollisionChecker, path: Array) -> tuple[Array, int, int | None]:
+    """``path`` (K, dof) with the edges the checker rejects replaced by skipping one of their
+    waypoints, where the checker accepts the skip. Returns the path, the number of
+    waypoints dropped, and the index of an edge that could not be repaired (None if none).
+
+    OMPL's path simplifier (run by AORRTC on every solution, and by ``simplify=True``) puts
+    waypoints in the middle of edges it has checked and does not check the pieces again;
+    sampled differently, a piece can come within the margin where the whole edge did not.
+    Skipping the inserted waypoint restores the checked edge or another one the checker
+    accepts; every edge of the result has passed the checker.
+    """
+    dropped = 0
+    bad = checker.first_invalid_edge(path)
+    while bad is not None:
+        # Skip the edge's far end, else its near end (never the start or the goal).
+        for k, (a, b) in ((bad + 1, (bad, bad + 2)), (bad, (bad - 1, bad + 1))):
+            if 0 < k < len(path) - 1 and checker.edge_valid(path[a], path[b]):
+                path = np.delete(path, k, axis=0)
+                dropped += 1
+                break
+        else:
+            return path, dropped, bad
+        bad = checker.first_invalid_edge(path)
+    return path, dropped, None

@@ -62,9 +62,10 @@ def oracle_path(
     seconds, resampled so that no step exceeds ``max_step`` rad.
 
     Returns a :class:`PlanResult` named ``oracle``: SUCCESS with the path (K, dof), start
-    and goal exact; START_INVALID / GOAL_INVALID; TIMEOUT when no planner found a path;
-    FAILED when no candidate's resampled path passes the checker. ``stats`` holds every
-    candidate's source and cost (rad), the winner, and the cost before resampling.
+    and goal exact; START_INVALID / GOAL_INVALID; TIMEOUT when no planner found a path in
+    time; FAILED when a planner failed otherwise and none succeeded, or when no candidate's
+    resampled path passes the checker. ``stats`` holds every candidate's source and cost
+    (rad), every planner run's outcome, the winner, and the cost before resampling.
     """
     t0 = time.perf_counter()
     if not (math.isfinite(budget_s) and budget_s > 0):
@@ -78,6 +79,7 @@ def oracle_path(
         return PlanResult("oracle", bad[0], None, time.perf_counter() - t0, detail=bad[1])
     deadline = t0 + budget_s
     candidates: list[tuple[str, Array]] = []
+    runs: list[tuple[str, str, str]] = []  # (planner, status, detail) of every planner run
 
     connect_deadline = t0 + _CONNECT_SHARE * budget_s
     rrtc = OmplPlanner("rrtconnect")
@@ -86,6 +88,7 @@ def oracle_path(
         if left <= 0:
             break
         res = rrtc.plan(checker, start, goal, budget_s=left, rng=rng)
+        runs.append((res.planner, res.status.value, res.detail))
         if res.path is None:
             break  # RRT-Connect used its whole share: another run would get no time
         candidates.append((f"rrtconnect#{run}", _refine(res.path, checker, rng, connect_deadline)))
@@ -95,17 +98,23 @@ def oracle_path(
     anytime_end = t0 + (_CONNECT_SHARE + _ANYTIME_SHARE) * budget_s
     anytime_s = max(anytime_end - time.perf_counter(), 0.1 * budget_s)
     res = OmplPlanner("aorrtc").plan(checker, start, goal, budget_s=anytime_s, rng=rng)
+    runs.append((res.planner, res.status.value, res.detail))
     if res.path is not None:
         candidates.append(("aorrtc", _refine(res.path, checker, rng, deadline)))
 
-    stats: dict[str, Any] = {"candidates": [(src, path_length(p)) for src, p in candidates]}
+    stats: dict[str, Any] = {
+        "candidates": [(src, path_length(p)) for src, p in candidates],
+        "runs": runs,
+    }
     if not candidates:
+        failed = [r for r in runs if r[1] != PlanStatus.TIMEOUT.value]
         return PlanResult(
             "oracle",
-            PlanStatus.TIMEOUT,
+            PlanStatus.FAILED if failed else PlanStatus.TIMEOUT,
             None,
             time.perf_counter() - t0,
-            detail=f"no planner found a path in {budget_s:.3f} s",
+            detail=f"no planner found a path in {budget_s:.3f} s"
+            + "".join(f"; {name}: {detail}" for name, _, detail in failed),
             stats=stats,
         )
     for src, path in sorted(candidates, key=lambda c: path_length(c[1])):

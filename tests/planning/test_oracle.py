@@ -58,6 +58,7 @@ def test_oracle_statuses(
     res = oracle_path(tube, np.zeros(6), robot.named_configuration("up"), rng, budget_s=1.0)
     assert res.status is PlanStatus.TIMEOUT and res.path is None
     assert res.stats["candidates"] == []
+    assert {status for _, status, _ in res.stats["runs"]} == {"timeout"}
     with pytest.raises(PlanningError, match="budget_s"):
         oracle_path(wall, start, goal, rng, budget_s=0.0)
 
@@ -86,6 +87,7 @@ def test_oracle_cost_matches_its_path(
 ) -> None:
     start, goal = wall_problem()
     res = oracle_path(wall, start, goal, rng, budget_s=1.0, max_step=0.2, connect_runs=0)
-    assert res.path is not None
+    assert res.path is not None, res.detail
     assert [src for src, _ in res.stats["candidates"]] == ["aorrtc"]
+    assert [name for name, _, _ in res.stats["runs"]] == ["aorrtc"]
     assert res.cost == pytest.approx(path_length(res.path))
