@@ -55,6 +55,8 @@ class BatchKinematics:
                     "revolute and prismatic joints"
                 )
         self.T_world_base = robot.T_world_base
+        self._model, self._data = robot.model, robot.model.createData()
+        self._base_identity = bool(np.allclose(robot.T_world_base, np.eye(4)))
 
     def joint_poses(self, Q: Array) -> tuple[list[Array], list[Array]]:
         """World rotation (B, 3, 3) and translation (B, 3) of every joint frame, as lists
@@ -78,6 +80,18 @@ class BatchKinematics:
                 R.append(Rp @ _axis_rotation(axis, q))
                 t.append(tp)
         return R, t
+
+    def points_one(self, q: Array, joint_ids: npt.NDArray[np.int64], local: Array) -> Array:
+        """World positions (P, 3) for one configuration q (dof,): Pinocchio's forward pass is
+        one C++ call, where the batched path costs ~0.3 ms of numpy overhead per call."""
+        pin.forwardKinematics(self._model, self._data, q)
+        oMi = self._data.oMi
+        R = np.array([oMi[int(j)].rotation for j in range(self.njoints)])
+        t = np.array([oMi[int(j)].translation for j in range(self.njoints)])
+        pts = np.einsum("pij,pj->pi", R[joint_ids], local) + t[joint_ids]
+        if self._base_identity:
+            return pts
+        return pts @ self.T_world_base[:3, :3].T + self.T_world_base[:3, 3]
 
     def points(self, Q: Array, joint_ids: npt.NDArray[np.int64], local: Array) -> Array:
         """World positions (B, P, 3) of points ``local`` (P, 3) fixed in the frames of joints

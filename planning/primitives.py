@@ -88,6 +88,8 @@ class PrimitiveWorld:
         Computed on coordinate rows (3, N): numpy's reductions over a short last axis
         (``max(axis=1)`` on (N, 3)) cost more than all the arithmetic (measured 2.5x).
         """
+        if points.shape[0] * len(self.primitives) <= 4096:
+            return self._distance_few(points)
         out = np.full(points.shape[0], np.inf)
         pts = np.ascontiguousarray(points.T)  # (3, N)
         for R, t, half in zip(self._box_R, self._box_t, self._box_half, strict=True):
@@ -106,6 +108,29 @@ class PrimitiveWorld:
         for c, radius in zip(self._sph_c, self._sph_r, strict=True):
             d = pts - c[:, None]
             np.minimum(out, np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2) - radius, out=out)
+        return out
+
+    def _distance_few(self, points: Array) -> Array:
+        """The same distances for few points (one configuration's spheres): all primitives of
+        a kind at once, a handful of numpy calls instead of a handful per primitive."""
+        out = np.full(points.shape[0], np.inf)
+        if len(self._box_t):
+            rel = points[None, :, :] - self._box_t[:, None, :]  # (M, N, 3)
+            q = np.abs(np.einsum("mnj,mjk->mnk", rel, self._box_R)) - self._box_half[:, None, :]
+            d = np.sqrt(np.sum(np.maximum(q, 0.0) ** 2, axis=-1)) + np.minimum(q.max(axis=-1), 0.0)
+            np.minimum(out, d.min(axis=0), out=out)
+        if len(self._cyl_t):
+            rel = points[None, :, :] - self._cyl_t[:, None, :]
+            local = np.einsum("mnj,mjk->mnk", rel, self._cyl_R)
+            dr = np.hypot(local[..., 0], local[..., 1]) - self._cyl_rh[:, None, 0]
+            dz = np.abs(local[..., 2]) - self._cyl_rh[:, None, 1]
+            d = np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0)) + np.minimum(
+                np.maximum(dr, dz), 0.0
+            )
+            np.minimum(out, d.min(axis=0), out=out)
+        if len(self._sph_c):
+            d = np.linalg.norm(points[None] - self._sph_c[:, None], axis=-1) - self._sph_r[:, None]
+            np.minimum(out, d.min(axis=0), out=out)
         return out
 
     def sample_surface(self, n: int, rng: np.random.Generator) -> Array:

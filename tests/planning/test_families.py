@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +46,7 @@ def test_problems_are_deterministic_per_seed(robot: RobotModel, spheres: SphereM
 
 def test_seed_ranges_are_disjoint() -> None:
     spans = sorted(SEED_RANGES.values())
-    assert all(hi <= lo2 for (_, hi), (lo2, _) in zip(spans, spans[1:], strict=False))
+    assert all(hi <= lo2 for (_, hi), (lo2, _) in itertools.pairwise(spans))
     assert split_seed("test", 0) == SEED_RANGES["test"][0]
     with pytest.raises(PlanningError, match="outside the val range"):
         split_seed("val", 10**7)
