@@ -151,9 +151,10 @@ def _validity_callback(
 
 @contextlib.contextmanager
 def _ompl_log_level(level: Any) -> Iterator[None]:
-    """OMPL's (process-wide) log level set to ``level`` for the block, then restored."""
+    """OMPL's (process-wide) log level at most as verbose as ``level`` for the block (a caller
+    that silenced OMPL, such as the harness, stays silent), then restored."""
     previous = ou.getLogLevel()
-    ou.setLogLevel(level)
+    ou.setLogLevel(level if level.value > previous.value else previous)
     try:
         yield
     finally:
@@ -322,10 +323,28 @@ class OmplPlanner:
             if self.simplify:
                 remaining = deadline - time.perf_counter()
                 simplifier = og.PathSimplifier(si, pdef.getGoal(), objective)
+                raw = og.PathGeometric(solution)
                 if remaining > 0:
                     simplifier.simplify(solution, remaining, False)
                 stats["simplify_s"] = time.perf_counter() - solved_at
+                # The simplifier's B-spline smoothing and a cut-short pass can leave a longer
+                # path than it was given: keep whichever is shorter.
+                if solution.length() > raw.length():
+                    solution = raw
+                    stats["simplify_kept_raw"] = True
             path = _path_array(solution, dof)
+        elif (
+            self.name == "aorrtc"
+            and ompl_status.getStatus() == ob.PlannerStatus.INVALID_GOAL
+            and checker.edge_valid(start, goal)
+        ):
+            # OMPL's AORRTC (2.0) shortcuts its solution to the straight start-goal edge when
+            # that edge is free, then rejects that 2-state path as "zero-length" and reports
+            # an invalid goal (the ends passed check_endpoints, so the goal is valid). The
+            # path it had is the straight edge, checked here again.
+            path = np.stack([start, goal])
+            stats["raw_cost"] = float(np.linalg.norm(goal - start))
+            stats["straight_edge_workaround"] = True
         elif pdef.hasApproximateSolution():
             stats["approximate_gap"] = float(pdef.getSolutionDifference())  # rad from goal
         stats.update(

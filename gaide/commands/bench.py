@@ -48,6 +48,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "--json", help="write results to this JSON file (a .md table and a .png plot beside it)"
     )
     pla.set_defaults(func=cmd_planning)
+    ora = bsub.add_parser("oracle", help="the training oracle's path cost against long runs")
+    ora.add_argument("--families", default="all", help="comma-separated families or 'all'")
+    ora.add_argument("--problems", type=int, default=2, help="problems per family")
+    ora.add_argument(
+        "--budget", type=float, default=5.0, help="oracle budget (s); references get 3x"
+    )
+    ora.add_argument("--robot", help="robot config YAML (default: UR5)")
+    ora.add_argument("--json", help="write the figures to this JSON file")
+    ora.set_defaults(func=cmd_oracle)
 
 
 def cmd_collision(args: argparse.Namespace) -> int:
@@ -157,4 +166,48 @@ def cmd_planning(args: argparse.Namespace) -> int:
         out.with_suffix(".md").write_text(markdown_table(result) + "\n")
         plot(result, out.with_suffix(".png"))
         print(f"wrote {out}, {out.with_suffix('.md')}, {out.with_suffix('.png')}")
+    return 0
+
+
+def cmd_oracle(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from planning.collision import SphereCollisionChecker
+    from planning.families import generate_problem, parse_families, split_seed
+    from planning.oracle import oracle_quality
+
+    robot, spheres = robot_and_spheres(args.robot)
+    rows, runs = [], []
+    for fam in parse_families(args.families):
+        for i in tqdm(range(args.problems), desc=fam):
+            problem = generate_problem(fam, split_seed("val", i), robot, spheres)
+            checker = SphereCollisionChecker(robot, spheres, problem.world)
+            q = oracle_quality(
+                checker, problem.start, problem.goal, np.random.default_rng(i), budget_s=args.budget
+            )
+            runs.append({"family": fam, "problem": problem.name, **q})
+        ratios = [r["ratio"] for r in runs if r["family"] == fam and np.isfinite(r["ratio"])]
+        rows.append(
+            (
+                fam,
+                f"median oracle/reference cost {np.median(ratios):.3f} over {len(ratios)}"
+                if ratios
+                else "no finite ratio",
+            )
+        )
+    all_ratios = [r["ratio"] for r in runs if np.isfinite(r["ratio"])]
+    rows.append(
+        (
+            "all",
+            f"median {np.median(all_ratios):.3f}, worst {np.max(all_ratios):.3f}"
+            if all_ratios
+            else "no finite ratio",
+        )
+    )
+    print_table(rows, f"oracle ({args.budget} s) vs best of 3 runs at {3 * args.budget} s")
+    if args.json:
+        write_json(
+            args.json,
+            {"runs": runs, "median_ratio": float(np.median(all_ratios)) if all_ratios else None},
+        )
     return 0

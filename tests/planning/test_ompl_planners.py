@@ -238,3 +238,19 @@ def test_repair_skips_waypoints_the_checker_rejects(wall: SphereCollisionChecker
     through = np.stack([start, goal])
     _, dropped, bad = _repair(wall, through)
     assert bad == 0 and dropped == 0
+
+
+@pytest.mark.parametrize("name", PLANNER_NAMES)
+def test_a_free_straight_edge_is_solved_by_every_planner(
+    name: str, wall: SphereCollisionChecker
+) -> None:
+    # The wall's start with a goal it can reach in a straight line: OMPL's AORRTC reports
+    # such paths as an invalid goal, which the wrapper must not pass on as a failure.
+    start, _ = wall_problem()
+    goal = start.copy()
+    goal[0] += 0.5
+    assert wall.edge_valid(start, goal)
+    res = make_planner(name).plan(wall, start, goal, budget_s=0.5, rng=np.random.default_rng(SEED))
+    assert res.status is PlanStatus.SUCCESS, (res.status, res.detail)
+    assert res.cost == pytest.approx(0.5, abs=1e-6) or name in ("rrtconnect", "rrtstar")
+    assert edges_all_valid(wall, res.path)
