@@ -59,3 +59,10 @@ class ExecutionError(GaideError):
     """Export, simulation or log comparison failed."""
 
     exit_code = 9
+
+
+class ModelError(GaideError):
+    """A network checkpoint, its training data or a model setting: missing, corrupt, for
+    another robot or model kind, or out of range."""
+
+    exit_code = 10

@@ -8,7 +8,7 @@ import sys
 
 from core.errors import GaideError
 from gaide import demo
-from gaide.commands import bench, perception, record, robot, scenes
+from gaide.commands import bench, neural, perception, record, robot, scenes
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -21,6 +21,7 @@ def build_parser() -> argparse.ArgumentParser:
     robot.add_parser(sub)
     scenes.add_parser(sub)
     bench.add_parser(sub)
+    neural.add_parser(sub)
     return parser
 
 

@@ -8,14 +8,25 @@ from core.errors import PlanningError
 from planning.planner import Planner
 
 CLASSICAL = ("rrtconnect", "rrtstar", "informed_rrtstar", "bitstar", "aorrtc")
+# Neural planners, paper mode (no fallback), with the repository's shipped weights; and
+# GAIDE in hybrid mode (RRT-Connect for what the network cannot repair).
+NEURAL = ("gaide", "gaide-v", "gaide-h", "mpnet", "simpnet")
+HYBRID = ("gaide-hybrid",)
 
 
 def _factories() -> dict[str, Callable[[], Planner]]:
+    from planning.neural.checkpoint import shipped_checkpoint
+    from planning.neural_planner import NeuralPlanner
     from planning.ompl_planners import OmplPlanner
 
     out: dict[str, Callable[[], Planner]] = {}
     for name in CLASSICAL:
         out[name] = lambda name=name: OmplPlanner(name)  # type: ignore[misc]
+    for name in NEURAL:
+        out[name] = lambda name=name: NeuralPlanner(name, shipped_checkpoint(name))  # type: ignore[misc]
+    out["gaide-hybrid"] = lambda: NeuralPlanner(
+        "gaide-hybrid", shipped_checkpoint("gaide"), mode="hybrid"
+    )
     return out
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
 from tqdm import tqdm
 
@@ -57,6 +58,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     ora.add_argument("--robot", help="robot config YAML (default: UR5)")
     ora.add_argument("--json", help="write the figures to this JSON file")
     ora.set_defaults(func=cmd_oracle)
+    sam = bsub.add_parser("sampler", help="forward-pass time of the neural samplers")
+    sam.add_argument(
+        "--models", default="gaide,gaide-v,gaide-h,mpnet,simpnet", help="comma-separated kinds"
+    )
+    sam.add_argument("--checkpoint", help="time this checkpoint instead of the shipped weights")
+    sam.add_argument("--batches", default="1,8,32", help="rollouts per forward pass")
+    sam.add_argument("--repeats", type=int, default=50)
+    sam.add_argument("--robot", help="robot config YAML (default: UR5)")
+    sam.add_argument("--json", help="write the figures to this JSON file")
+    sam.set_defaults(func=cmd_sampler)
 
 
 def cmd_collision(args: argparse.Namespace) -> int:
@@ -210,4 +221,54 @@ def cmd_oracle(args: argparse.Namespace) -> int:
             args.json,
             {"runs": runs, "median_ratio": float(np.median(all_ratios)) if all_ratios else None},
         )
+    return 0
+
+
+def cmd_sampler(args: argparse.Namespace) -> int:
+    import numpy as np
+    import torch
+
+    from planning.families import generate_problem, split_seed
+    from planning.neural.checkpoint import shipped_checkpoint
+    from planning.neural.sampler import NeuralSampler
+    from planning.scene_views import surface_cloud
+
+    robot, spheres = robot_and_spheres(args.robot)
+    problem = generate_problem("shelf_ii", split_seed("test", 0), robot, spheres)
+    cloud = surface_cloud(problem.world, 2048, np.random.default_rng(0))
+    batches = [int(b) for b in args.batches.split(",")]
+    devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+    kinds = [k.strip() for k in args.models.split(",") if k.strip()]
+    out: dict[str, Any] = {"threads": torch.get_num_threads(), "results": {}}
+    rows = []
+    for kind in kinds:
+        ckpt = args.checkpoint or shipped_checkpoint(kind)
+        for dev in devices:
+            sampler = NeuralSampler(ckpt, robot, kind if not args.checkpoint else None, device=dev)
+            times: dict[str, float] = {}
+            t0 = time.perf_counter()
+            scene = sampler.scene(cloud)
+            if dev == "cuda":
+                torch.cuda.synchronize()
+            times["scene_ms"] = 1e3 * (time.perf_counter() - t0)
+            for b in batches:
+                sampler.sample(scene, problem.start, problem.goal, b)  # warm-up
+                runs = []
+                for _ in range(args.repeats):
+                    t0 = time.perf_counter()
+                    sampler.sample(scene, problem.start, problem.goal, b)
+                    if dev == "cuda":
+                        torch.cuda.synchronize()
+                    runs.append(time.perf_counter() - t0)
+                times[f"batch_{b}_ms"] = 1e3 * float(np.median(runs))
+            out["results"][f"{sampler.name}@{dev}"] = times
+            rows.append(
+                (
+                    f"{sampler.name} {dev}",
+                    ", ".join(f"{k.removesuffix('_ms')} {v:.2f} ms" for k, v in times.items()),
+                )
+            )
+    print_table(rows, f"median forward pass ({args.repeats} repeats, {out['threads']} threads)")
+    if args.json:
+        write_json(args.json, out)
     return 0

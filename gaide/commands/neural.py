@@ -1,0 +1,205 @@
+"""``gaide data generate``, ``gaide train`` and ``gaide plan``: GAIDE's training data, its
+training, and planning one problem with any planner."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from core.errors import ConfigError, PlanningError
+from gaide.common import print_table, robot_and_spheres, write_json
+from planning.families import FAMILIES, generate_problem, parse_families, split_seed
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    data = sub.add_parser("data", help="GAIDE's training data (oracle paths)")
+    dsub = data.add_subparsers(dest="data_cmd", required=True)
+    gen = dsub.add_parser("generate", help="oracle paths on the training seed range")
+    gen.add_argument("--families", default="all", help="comma-separated families or 'all'")
+    gen.add_argument("--paths", type=int, required=True, help="number of path indices")
+    gen.add_argument("--out", required=True, help="data directory (resumed if it exists)")
+    gen.add_argument("--shard-size", type=int, default=50, help="paths per shard file")
+    gen.add_argument("--max-step", type=float, default=0.3, help="path step (rad)")
+    gen.add_argument("--oracle-budget", type=float, default=2.0, help="seconds per path")
+    gen.add_argument("--workers", type=int, help="processes (default: all cores)")
+    gen.add_argument("--robot", help="robot config YAML (default: UR5)")
+    gen.set_defaults(func=cmd_data_generate)
+
+    tr = sub.add_parser("train", help="train GAIDE, an ablation or a neural baseline")
+    tr.add_argument(
+        "--model", required=True, choices=["gaide", "gaide-v", "gaide-h", "mpnet", "simpnet"]
+    )
+    tr.add_argument("--data", required=True, help="data directory from `gaide data generate`")
+    tr.add_argument("--out", required=True, help="checkpoint file (a .card.json goes beside it)")
+    tr.add_argument("--steps", type=int, default=3000)
+    tr.add_argument("--batch", type=int, default=128)
+    tr.add_argument("--lr", type=float, default=1e-3)
+    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--device", default="auto", help="auto (CUDA if present), cpu or cuda[:N]")
+    tr.add_argument("--resume", action="store_true", help="continue from --out if it exists")
+    tr.add_argument("--robot", help="robot config YAML (default: UR5)")
+    tr.set_defaults(func=cmd_train)
+
+    pl = sub.add_parser("plan", help="plan one problem and write the path as JSON")
+    src = pl.add_mutually_exclusive_group(required=True)
+    src.add_argument("--scene", help="scene cloud (.ply, base frame)")
+    src.add_argument("--family", choices=FAMILIES, help="a generated task-family problem")
+    pl.add_argument("--seed", type=int, help="problem seed (default: the first test seed)")
+    pl.add_argument("--start", help="start configuration: comma-separated rad, or a named one")
+    pl.add_argument("--goal", help="goal configuration: comma-separated rad, or a named one")
+    pl.add_argument(
+        "--planner", default="gaide-hybrid", help="planner name (see `gaide bench planning`)"
+    )
+    pl.add_argument("--checkpoint", help="weights for a neural planner (default: the shipped ones)")
+    pl.add_argument("--budget", type=float, default=5.0, help="seconds")
+    pl.add_argument("--robot", help="robot config YAML (default: UR5)")
+    pl.add_argument("-o", "--output", required=True, help="path JSON")
+    pl.set_defaults(func=cmd_plan)
+
+
+def cmd_data_generate(args: argparse.Namespace) -> int:
+    from planning.neural.data import DataCfg, generate
+
+    cfg = DataCfg(
+        families=tuple(parse_families(args.families)),
+        paths=args.paths,
+        shard_size=args.shard_size,
+        max_step=args.max_step,
+        oracle_budget_s=args.oracle_budget,
+    )
+    t0 = time.perf_counter()
+    bar = tqdm(desc="shards", unit="shard")
+
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(1)
+
+    manifest = generate(
+        cfg, args.out, robot_config=args.robot, workers=args.workers, progress=progress
+    )
+    bar.close()
+    print_table(
+        [
+            ("paths", str(manifest["paths"])),
+            ("failures", str(manifest["failures"])),
+            ("shards", str(len(manifest["shards"]))),
+            ("wall", f"{time.perf_counter() - t0:.1f} s"),
+        ],
+        f"data in {args.out}",
+    )
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from planning.neural.train import TrainCfg, Trainer
+
+    robot, _ = robot_and_spheres(args.robot)
+    cfg = TrainCfg(
+        steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, device=args.device
+    )
+    trainer = Trainer(args.model, robot, args.data, cfg)
+    if args.resume and Path(args.out).exists():
+        trainer.resume(args.out)
+    bar = tqdm(total=cfg.steps, initial=trainer.step, desc=f"train {args.model}", unit="step")
+
+    def progress(step: int, entry: dict[str, float]) -> None:
+        bar.update(step - bar.n)
+        bar.set_postfix(train=f"{entry['train']:.4f}", val=f"{entry['val']:.4f}")
+
+    digest = trainer.run(args.out, progress)
+    bar.close()
+    last = trainer.history[-1] if trainer.history else {}
+    print_table(
+        [
+            ("checkpoint", f"{args.out} (sha256 {digest[:12]})"),
+            ("device", str(trainer.device)),
+            ("steps", str(trainer.step)),
+            ("train loss", f"{last.get('train', float('nan')):.4f}"),
+            ("val loss", f"{last.get('val', float('nan')):.4f}"),
+            ("wall", f"{trainer.wall_s:.1f} s"),
+        ],
+        f"trained {args.model}",
+    )
+    return 0
+
+
+def _configuration(text: str | None, robot: Any, what: str) -> np.ndarray:
+    if text is None:
+        raise ConfigError(
+            f"--{what} is needed with --scene (comma-separated rad or a named configuration)"
+        )
+    if text in robot.config.named_configurations:
+        return robot.named_configuration(text)
+    try:
+        q = np.array([float(v) for v in text.split(",")])
+    except ValueError as err:
+        raise ConfigError(
+            f"--{what} '{text}': give {robot.dof} comma-separated angles (rad) or one of "
+            f"{sorted(robot.config.named_configurations)}"
+        ) from err
+    return robot.as_configuration(q, what)
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    from planning.collision import SphereCollisionChecker
+    from planning.distance_field import CloudWorld
+    from planning.neural_planner import NeuralPlanner
+    from planning.registry import HYBRID, NEURAL, make_planner
+
+    robot, spheres = robot_and_spheres(args.robot)
+    if args.family:
+        seed = args.seed if args.seed is not None else split_seed("test", 0)
+        problem = generate_problem(args.family, seed, robot, spheres)
+        world: Any = problem.world
+        start = problem.start if args.start is None else _configuration(args.start, robot, "start")
+        goal = problem.goal if args.goal is None else _configuration(args.goal, robot, "goal")
+        source = f"{args.family} seed {seed}"
+    else:
+        from perception.cloud import load_ply
+
+        points = load_ply(args.scene)
+        world = CloudWorld(points)
+        start = _configuration(args.start, robot, "start")
+        goal = _configuration(args.goal, robot, "goal")
+        source = args.scene
+    if args.checkpoint and args.planner not in NEURAL + HYBRID:
+        raise ConfigError(
+            f"--checkpoint is for neural planners {list(NEURAL + HYBRID)}, not {args.planner}"
+        )
+    if args.checkpoint:
+        planner: Any = NeuralPlanner(
+            args.planner,
+            args.checkpoint,
+            mode="hybrid" if args.planner in HYBRID else "paper",
+        )
+    else:
+        planner = make_planner(args.planner)
+    checker = SphereCollisionChecker(robot, spheres, world)
+    rng = np.random.default_rng(0 if args.seed is None else args.seed)
+    result = planner.plan(checker, start, goal, budget_s=args.budget, rng=rng)
+    if result.path is None:
+        raise PlanningError(f"{args.planner} on {source}: {result.status.value}: {result.detail}")
+    write_json(
+        args.output,
+        {
+            "planner": result.planner,
+            "status": result.status.value,
+            "scene": source,
+            "joint_names": [str(n) for n in robot.model.names[1:]],
+            "time_s": result.time_s,
+            "cost_rad": result.cost,
+            "path": result.path.tolist(),
+            "stats": json.loads(json.dumps(result.stats, default=str)),
+        },
+    )
+    print(
+        f"{result.planner}: {len(result.path)} waypoints, {result.cost:.3f} rad in "
+        f"{result.time_s:.3f} s -> {args.output}"
+    )
+    return 0

@@ -1,0 +1,3 @@
+"""GAIDE and the neural baselines: point-cloud set abstraction, the graph-masked transformer,
+MPNet and SIMPNet, their training data, training loop and checkpoints, and the sampler the
+neural bidirectional planner draws from."""

@@ -1,0 +1,137 @@
+"""Checkpoints: the weights with everything needed to rebuild and check the model (kind,
+sizes, robot, embodiment), and a model card beside each (data, steps, time, device, losses)."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import nn
+
+from calibration.atomic import write_bytes_atomic
+from core.errors import ModelError
+from planning.neural.embodiment import Embodiment
+from planning.neural.models import MODEL_KINDS, ModelCfg, build_model
+from planning.robot_model import RobotModel
+
+FORMAT = "gaide-checkpoint/1"
+WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "data" / "weights"
+
+
+def shipped_checkpoint(kind: str) -> Path:
+    """The repository's trained weights for ``kind`` (the embedded default)."""
+    if kind not in MODEL_KINDS:
+        raise ModelError(f"unknown model '{kind}'; valid: {list(MODEL_KINDS)}")
+    return WEIGHTS_DIR / f"{kind}.pt"
+
+
+def robot_signature(robot: RobotModel) -> dict[str, Any]:
+    """What a checkpoint must match: the joint names and limits of the robot."""
+    names = [str(n) for n in robot.model.names[1:]]
+    return {
+        "joints": names,
+        "dof": robot.dof,
+        "lower": [round(float(x), 6) for x in robot.lower],
+        "upper": [round(float(x), 6) for x in robot.upper],
+    }
+
+
+@dataclass
+class Checkpoint:
+    kind: str
+    cfg: ModelCfg
+    embodiment: Embodiment
+    robot: dict[str, Any]
+    state: dict[str, Any]
+    step: int = 0
+    optimizer: dict[str, Any] | None = None
+    card: dict[str, Any] = field(default_factory=dict)
+
+    def model(self) -> nn.Module:
+        m = build_model(self.kind, self.cfg, self.embodiment, int(self.robot["dof"]))
+        try:
+            m.load_state_dict(self.state)
+        except RuntimeError as err:
+            raise ModelError(
+                f"the checkpoint's weights do not fit a {self.kind} model: {err}"
+            ) from err
+        return m
+
+
+def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> str:
+    """Write the checkpoint and its card (``<path>.card.json``) atomically; returns the
+    checkpoint's sha256."""
+    buf = io.BytesIO()
+    torch.save(
+        {
+            "format": FORMAT,
+            "kind": ckpt.kind,
+            "cfg": ckpt.cfg.to_dict(),
+            "embodiment": ckpt.embodiment.to_dict(),
+            "robot": ckpt.robot,
+            "state": ckpt.state,
+            "step": ckpt.step,
+            "optimizer": ckpt.optimizer,
+            "card": ckpt.card,
+        },
+        buf,
+    )
+    data = buf.getvalue()
+    digest = hashlib.sha256(data).hexdigest()
+    write_bytes_atomic(path, data)
+    card = dict(ckpt.card, sha256=digest, kind=ckpt.kind, step=ckpt.step)
+    write_bytes_atomic(card_path(path), json.dumps(card, indent=1).encode())
+    return digest
+
+
+def card_path(path: str | Path) -> Path:
+    p = Path(path)
+    return p.with_name(p.name + ".card.json")
+
+
+def load_checkpoint(
+    path: str | Path, robot: RobotModel | None = None, kind: str | None = None
+) -> Checkpoint:
+    """Read a checkpoint; with ``robot`` / ``kind`` given, refuse one made for another."""
+    p = Path(path)
+    if not p.is_file():
+        raise ModelError(f"checkpoint {p} does not exist (train one with `gaide train`)")
+    try:
+        raw = torch.load(p, map_location="cpu", weights_only=True)
+    except Exception as err:  # torch raises many types for a corrupt file
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise ModelError(f"checkpoint {p} is corrupt or not a torch file ({first})") from err
+    if not isinstance(raw, dict) or raw.get("format") != FORMAT:
+        raise ModelError(f"{p} is not a GAIDE checkpoint (expected format {FORMAT})")
+    try:
+        ckpt = Checkpoint(
+            kind=raw["kind"],
+            cfg=ModelCfg(**raw["cfg"]),
+            embodiment=Embodiment.from_dict(raw["embodiment"]),
+            robot=raw["robot"],
+            state=raw["state"],
+            step=int(raw["step"]),
+            optimizer=raw.get("optimizer"),
+            card=raw.get("card") or {},
+        )
+    except (KeyError, TypeError, ValueError) as err:
+        raise ModelError(f"checkpoint {p} is incomplete ({err})") from err
+    if kind is not None and ckpt.kind != kind:
+        raise ModelError(f"checkpoint {p} holds a {ckpt.kind} model, not {kind}")
+    if robot is not None:
+        want = robot_signature(robot)
+        if ckpt.robot.get("joints") != want["joints"] or ckpt.robot.get("dof") != want["dof"]:
+            raise ModelError(
+                f"checkpoint {p} was trained for another robot (joints {ckpt.robot.get('joints')}); "
+                f"this robot has {want['joints']}"
+            )
+    return ckpt
+
+
+def file_sha256(path: str | Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()

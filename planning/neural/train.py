@@ -1,0 +1,284 @@
+"""Training: MSE on the normalized step delta_q / step along the oracle paths (both
+directions), AdamW with warm-up and cosine decay, validation on held-out paths, checkpoints
+and resume, CPU or CUDA (mixed precision there), reproducible from a seed.
+
+Each training pair is a waypoint q_i of a path, its next waypoint q_{i+1} and a goal: the
+path's end, or (half of the time) a later waypoint of the same path, as the bidirectional
+planner asks for steps toward the other tree's end rather than the final goal.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import platform
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import torch
+from torch import nn
+
+from core.errors import ModelError
+from planning.neural.checkpoint import (
+    Checkpoint,
+    file_sha256,
+    load_checkpoint,
+    robot_signature,
+    save_checkpoint,
+)
+from planning.neural.data import MANIFEST, PathSet, load_paths
+from planning.neural.embodiment import RobotCloud, build_embodiment
+from planning.neural.models import MODEL_KINDS, ModelCfg, build_model, encode_scene
+from planning.robot_model import RobotModel
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class TrainCfg:
+    steps: int = 3000
+    batch: int = 128
+    lr: float = 1e-3
+    weight_decay: float = 1e-4
+    warmup: int = 100
+    val_share: float = 0.1
+    val_every: int = 250
+    save_every: int = 500
+    seed: int = 0
+    device: str = "auto"
+
+    def check(self) -> None:
+        if self.steps < 1 or self.batch < 1 or not self.lr > 0 or not 0 <= self.val_share < 1:
+            raise ModelError(
+                "need steps >= 1, batch >= 1, lr > 0 and 0 <= val_share < 1; got "
+                f"{self.steps}, {self.batch}, {self.lr}, {self.val_share}"
+            )
+
+
+class Pairs:
+    """Training pairs of a set of paths, both directions, drawn in vectorized batches."""
+
+    def __init__(self, ps: PathSet, path_ids: npt.NDArray[np.int64]) -> None:
+        oriented, scene_of = [], []
+        for p in path_ids:
+            path = ps.paths[int(p)].astype(np.float32)
+            if len(path) < 2:
+                continue
+            oriented += [path, path[::-1]]
+            scene_of += [int(p), int(p)]
+        if not oriented:
+            raise ModelError("no path with two or more waypoints to train on")
+        self.q = np.concatenate(oriented)
+        lengths = np.array([len(p) for p in oriented])
+        ends = np.cumsum(lengths) - 1  # global index of each oriented path's last waypoint
+        owner = np.repeat(np.arange(len(oriented)), lengths)
+        not_last = np.ones(len(self.q), bool)
+        not_last[ends] = False
+        self.index = np.flatnonzero(not_last)  # pairs: waypoint g and g + 1
+        self.end = ends[owner][self.index]
+        self.scene = np.asarray(scene_of)[owner][self.index]
+        self.n_paths = len(oriented) // 2
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def batch(
+        self, rng: np.random.Generator, size: int
+    ) -> tuple[npt.NDArray[np.int64], np.ndarray, np.ndarray, np.ndarray]:
+        """(scene indices, q, goal, q_next) for ``size`` random pairs."""
+        k = rng.integers(0, len(self.index), size)
+        g, e = self.index[k], self.end[k]
+        later = g + 1 + np.floor(rng.random(size) * (e - g)).astype(np.int64)
+        goal_idx = np.where(rng.random(size) < 0.5, e, np.minimum(later, e))
+        return self.scene[k], self.q[g], self.q[goal_idx], self.q[g + 1]
+
+
+def pick_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name.startswith("cuda") and not torch.cuda.is_available():
+        raise ModelError(f"device {name} asked for, but torch sees no CUDA device; use cpu or auto")
+    return torch.device(name)
+
+
+class Trainer:
+    def __init__(
+        self,
+        kind: str,
+        robot: RobotModel,
+        data: str | Path,
+        cfg: TrainCfg,
+        model_cfg: ModelCfg | None = None,
+    ) -> None:
+        if kind not in MODEL_KINDS:
+            raise ModelError(f"unknown model '{kind}'; valid: {list(MODEL_KINDS)}")
+        cfg.check()
+        self.kind, self.robot, self.cfg, self.data = kind, robot, cfg, Path(data)
+        self.paths = load_paths(data)
+        self.model_cfg = model_cfg or ModelCfg(step=self.paths.max_step)
+        if abs(self.model_cfg.step - self.paths.max_step) > 1e-9:
+            raise ModelError(
+                f"the model's step {self.model_cfg.step} must equal the data's max_step "
+                f"{self.paths.max_step}"
+            )
+        ids = np.random.default_rng(cfg.seed).permutation(len(self.paths.paths))
+        n_val = round(cfg.val_share * len(ids))
+        if n_val and len(ids) - n_val < 1:
+            raise ModelError("too few paths to hold some out for validation")
+        self.train_pairs = Pairs(self.paths, ids[n_val:])
+        self.val_pairs = Pairs(self.paths, ids[:n_val]) if n_val else None
+        self.embodiment = build_embodiment(robot)
+        self.robot_cloud = RobotCloud(robot, self.embodiment)
+        self.device = pick_device(cfg.device)
+        torch.manual_seed(cfg.seed)
+        self.model = build_model(kind, self.model_cfg, self.embodiment, robot.dof).to(self.device)
+        self.opt = torch.optim.AdamW(
+            self.model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay
+        )
+        self.step = 0
+        self.history: list[dict[str, float]] = []
+        self.wall_s = 0.0
+        self.amp = self.device.type == "cuda"
+        self.scaler = torch.amp.GradScaler("cuda", enabled=self.amp)
+
+    def resume(self, path: str | Path) -> None:
+        ck = load_checkpoint(path, self.robot, self.kind)
+        self.model.load_state_dict(ck.state)
+        if ck.optimizer is not None:
+            self.opt.load_state_dict(ck.optimizer)
+        self.step = ck.step
+        self.history = list(ck.card.get("history", []))
+        self.wall_s = float(ck.card.get("wall_s", 0.0))
+
+    def lr_at(self, step: int) -> float:
+        c = self.cfg
+        if step < c.warmup:
+            return c.lr * (step + 1) / c.warmup
+        t = (step - c.warmup) / max(c.steps - c.warmup, 1)
+        return c.lr * (0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(t, 1.0))))
+
+    def _tensors(
+        self, pairs: Pairs, rng: np.random.Generator, size: int
+    ) -> tuple[torch.Tensor, ...]:
+        scene_idx, q, goal, q_next = pairs.batch(rng, size)
+        n = self.model_cfg.scene_points
+        scenes = self.paths.scenes
+        pick = rng.choice(scenes.shape[1], n, replace=False) if scenes.shape[1] > n else slice(None)
+        scene = scenes[scene_idx][:, pick]
+        robot = self.robot_cloud(q.astype(np.float64)).astype(np.float32)
+        dev = self.device
+        delta = (q_next - q) / self.model_cfg.step
+        return tuple(
+            torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32)).to(dev)
+            for a in (robot, scene, q, goal, delta)
+        )
+
+    def _loss(self, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
+        robot, scene, q, goal, delta = batch
+        with torch.autocast(self.device.type, enabled=self.amp):
+            pred = self.model(robot, encode_scene(self.model, scene), q, goal)
+        return nn.functional.mse_loss(pred.float(), delta)
+
+    def validate(self, batches: int = 8) -> float:
+        if self.val_pairs is None:
+            return float("nan")
+        rng = np.random.default_rng([self.cfg.seed, 1])
+        self.model.eval()
+        with torch.no_grad():
+            losses = [
+                float(self._loss(self._tensors(self.val_pairs, rng, self.cfg.batch)))
+                for _ in range(batches)
+            ]
+        self.model.train()
+        return float(np.mean(losses))
+
+    def checkpoint(self) -> Checkpoint:
+        c = self.cfg
+        manifest = self.data / MANIFEST
+        card = {
+            "model": self.kind,
+            "data": str(self.data),
+            "data_manifest_sha256": file_sha256(manifest),
+            "data_paths": len(self.paths.paths),
+            "data_families": list(self.paths.family_names),
+            "train_pairs": len(self.train_pairs),
+            "val_pairs": len(self.val_pairs) if self.val_pairs else 0,
+            "steps": self.step,
+            "train": asdict(c),
+            "model_cfg": self.model_cfg.to_dict(),
+            "parameters": sum(p.numel() for p in self.model.parameters()),
+            "device": str(self.device)
+            + (
+                f" ({torch.cuda.get_device_name()})"
+                if self.device.type == "cuda"
+                else f" ({platform.processor() or platform.machine()}, {torch.get_num_threads()} threads)"
+            ),
+            "torch": str(torch.__version__),
+            "wall_s": self.wall_s,
+            "history": self.history,
+            "final_train_loss": self.history[-1]["train"] if self.history else None,
+            "final_val_loss": self.history[-1]["val"] if self.history else None,
+        }
+        return Checkpoint(
+            kind=self.kind,
+            cfg=self.model_cfg,
+            embodiment=self.embodiment,
+            robot=robot_signature(self.robot),
+            state={k: v.detach().cpu() for k, v in self.model.state_dict().items()},
+            step=self.step,
+            optimizer=self.opt.state_dict(),
+            card=card,
+        )
+
+    def run(
+        self, out: str | Path, progress: Callable[[int, dict[str, float]], None] | None = None
+    ) -> str:
+        """Train to ``cfg.steps``, saving to ``out`` every ``save_every`` steps and at the
+        end; returns the final checkpoint's sha256."""
+        c = self.cfg
+        self.model.train()
+        running: list[float] = []
+        digest = ""
+        t_last = time.perf_counter()
+        while self.step < c.steps:
+            rng = np.random.default_rng([c.seed, 0, self.step])
+            torch.manual_seed(c.seed * 1_000_003 + self.step)
+            for g in self.opt.param_groups:
+                g["lr"] = self.lr_at(self.step)
+            loss = self._loss(self._tensors(self.train_pairs, rng, c.batch))
+            if not torch.isfinite(loss):
+                raise ModelError(
+                    f"training diverged at step {self.step} (loss {float(loss)}); lower --lr"
+                )
+            self.opt.zero_grad(set_to_none=True)
+            self.scaler.scale(loss).backward()
+            self.scaler.unscale_(self.opt)
+            nn.utils.clip_grad_norm_(self.model.parameters(), 1.0)
+            self.scaler.step(self.opt)
+            self.scaler.update()
+            running.append(loss.item())
+            self.step += 1
+            last = self.step == c.steps
+            if self.step % c.val_every == 0 or last:
+                now = time.perf_counter()
+                self.wall_s += now - t_last
+                t_last = now
+                entry = {
+                    "step": self.step,
+                    "train": float(np.mean(running)),
+                    "val": self.validate(),
+                }
+                running = []
+                self.history.append(entry)
+                if progress:
+                    progress(self.step, entry)
+            if self.step % c.save_every == 0 or last:
+                now = time.perf_counter()
+                self.wall_s += now - t_last
+                t_last = now
+                digest = save_checkpoint(out, self.checkpoint())
+        return digest

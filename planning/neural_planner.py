@@ -1,0 +1,283 @@
+"""The neural bidirectional planner (MPNet's Algorithm 1, as the GAIDE paper uses it), with
+lazy states contraction, a check of every edge and neural replanning of failing segments.
+
+Beyond the paper: each step draws a batch of stochastic rollouts in one forward pass and takes
+the valid proposal (reachable by a valid edge where one is) nearest to the other tree's end;
+in ``hybrid`` mode a segment the network cannot repair, or the gap between two trees that
+never met, goes to RRT-Connect, so the planner is complete in practice. ``paper`` mode has no
+fallback.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from core.errors import PlanningError
+from planning.collision import SphereCollisionChecker
+from planning.distance_field import CloudWorld
+from planning.neural.sampler import Sampler, cached_sampler
+from planning.planner import Array, PlanResult, PlanStatus, check_endpoints
+from planning.primitives import PrimitiveWorld
+from planning.robot_model import RobotModel
+from planning.scene_views import surface_cloud
+
+log = logging.getLogger(__name__)
+
+MODES = ("paper", "hybrid")
+SCENE_POINTS = 2048
+
+
+def scene_cloud_of(checker: SphereCollisionChecker, seed: int = 0) -> Array:
+    """The network's view of the checker's world: surface samples of primitives, or the
+    cloud itself (base frame)."""
+    world = checker.world
+    if isinstance(world, CloudWorld):
+        return np.asarray(world.points, float)
+    if isinstance(world, PrimitiveWorld):
+        if not world.primitives:
+            raise PlanningError("the scene has no obstacles: a neural planner needs a scene cloud")
+        return surface_cloud(world, SCENE_POINTS, np.random.default_rng(seed))
+    raise PlanningError(
+        f"a neural planner needs a point cloud or primitives world, not {type(world).__name__}"
+    )
+
+
+class NeuralPlanner:
+    """``sampler`` proposes steps (or, given as a checkpoint path, the checkpoint's model,
+    loaded for the checker's robot on first use); ``mode`` 'paper' or 'hybrid'; ``rollouts`` proposals per
+    forward pass; ``max_steps`` of the bidirectional loop per (re)plan; ``replans`` rounds of
+    replanning failing segments."""
+
+    def __init__(
+        self,
+        name: str,
+        sampler: Sampler | str | Path,
+        *,
+        mode: str = "paper",
+        rollouts: int = 8,
+        max_steps: int = 80,
+        replans: int = 3,
+    ) -> None:
+        if mode not in MODES:
+            raise PlanningError(f"mode must be one of {MODES}, got {mode!r}")
+        if rollouts < 1 or max_steps < 1 or replans < 0:
+            raise PlanningError(
+                f"need rollouts >= 1, max_steps >= 1, replans >= 0; got {rollouts}, {max_steps}, {replans}"
+            )
+        self.name, self.mode = name, mode
+        self._sampler = sampler
+        self.rollouts, self.max_steps, self.replans = rollouts, max_steps, replans
+
+    def plan(
+        self,
+        checker: SphereCollisionChecker,
+        start: Array,
+        goal: Array,
+        *,
+        budget_s: float,
+        rng: np.random.Generator,
+        cloud: Array | None = None,
+    ) -> PlanResult:
+        t0 = time.perf_counter()
+        if not (math.isfinite(budget_s) and budget_s > 0):
+            raise PlanningError(f"budget_s must be a finite number of seconds > 0, got {budget_s}")
+        robot = checker.robot
+        start = robot.as_configuration(start, "start")
+        goal = robot.as_configuration(goal, "goal")
+        bad = check_endpoints(checker, start, goal)
+        if bad is not None:
+            return PlanResult(self.name, bad[0], None, time.perf_counter() - t0, detail=bad[1])
+        run = _Run(self, self.sampler_for(robot), checker, t0 + budget_s, rng)
+        if cloud is None:
+            cloud = scene_cloud_of(checker, int(rng.integers(2**31)))
+        import torch
+
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(int(rng.integers(2**31)))
+            run.scene = run.sampler.scene(cloud)
+            status, path, detail = run.solve(start, goal)
+        stats = dict(run.stats, encode_and_plan_s=time.perf_counter() - t0)
+        return PlanResult(self.name, status, path, time.perf_counter() - t0, detail, stats)
+
+    def sampler_for(self, robot: RobotModel) -> Sampler:
+        if isinstance(self._sampler, (str, Path)):
+            return cached_sampler(self._sampler, robot)
+        return self._sampler
+
+
+class _Timeout(Exception):
+    pass
+
+
+class _Run:
+    """One planning call's state: the encoded scene, the deadline, the counters."""
+
+    def __init__(
+        self,
+        planner: NeuralPlanner,
+        sampler: Sampler,
+        checker: SphereCollisionChecker,
+        deadline: float,
+        rng: np.random.Generator,
+    ) -> None:
+        self.p, self.sampler, self.checker = planner, sampler, checker
+        self.deadline, self.rng = deadline, rng
+        self.scene: Any = None
+        self._gap: tuple[list[Array], list[Array], bool] = ([], [], False)
+        self.stats: dict[str, Any] = {
+            "forward_passes": 0,
+            "neural_replans": 0,
+            "fallback_segments": 0,
+            "mode": planner.mode,
+        }
+
+    def _tick(self) -> None:
+        if time.perf_counter() >= self.deadline:
+            raise _Timeout
+
+    def solve(self, start: Array, goal: Array) -> tuple[PlanStatus, Array | None, str]:
+        try:
+            path = self.bidirectional(start, goal)
+            if path is None:
+                if self.p.mode == "paper":
+                    return (
+                        PlanStatus.FAILED,
+                        None,
+                        (f"the trees did not meet in {self.p.max_steps} steps"),
+                    )
+                path = self.fallback_gap(start, goal)
+                if path is None:
+                    return (
+                        PlanStatus.FAILED,
+                        None,
+                        "the trees did not meet and RRT-Connect found no bridge in time",
+                    )
+            path = self.contract(path)
+            for _ in range(self.p.replans):
+                bad = self.bad_edges(path)
+                if not bad.size:
+                    return PlanStatus.SUCCESS, path, ""
+                self.stats["neural_replans"] += 1
+                path = self.contract(self.replan(path, bad, neural=True))
+            bad = self.bad_edges(path)
+            if bad.size and self.p.mode == "hybrid":
+                path = self.contract(self.replan(path, bad, neural=False))
+                bad = self.bad_edges(path)
+            if bad.size:
+                return (
+                    PlanStatus.FAILED,
+                    None,
+                    (f"{bad.size} edges still collide after {self.p.replans} replanning rounds"),
+                )
+            return PlanStatus.SUCCESS, path, ""
+        except _Timeout:
+            return (
+                PlanStatus.TIMEOUT,
+                None,
+                (
+                    f"no valid path within the budget ({self.stats['forward_passes']} forward passes, "
+                    f"{self.stats['neural_replans']} neural replans, {self.stats['fallback_segments']} "
+                    "RRT-Connect segments)"
+                ),
+            )
+
+    # -- the bidirectional loop ------------------------------------------------------------
+
+    def propose(self, q: Array, target: Array) -> Array | None:
+        """The next node from ``q`` toward ``target``: the valid rollout nearest the target,
+        preferring those joined to ``q`` by a valid edge; None if no rollout is valid."""
+        self._tick()
+        cands = self.sampler.sample(self.scene, q, target, self.p.rollouts)
+        self.stats["forward_passes"] += 1
+        ok = self.checker.config_valid(cands)
+        if not ok.any():
+            return None
+        cands = cands[ok]
+        reach = self.checker.edges_valid(np.repeat(q[None], len(cands), axis=0), cands)
+        pool = cands[reach] if reach.any() else cands
+        return pool[int(np.argmin(np.linalg.norm(pool - target, axis=1)))]
+
+    def bidirectional(self, start: Array, goal: Array) -> Array | None:
+        """Algorithm 1: grow from both ends by turns until the ends see each other."""
+        a, b = [start], [goal]
+        if self.checker.edge_valid(start, goal):
+            return np.stack([start, goal])
+        swapped = False
+        for _ in range(self.p.max_steps):
+            nxt = self.propose(a[-1], b[-1])
+            if nxt is not None:
+                a.append(nxt)
+                if self.checker.edge_valid(a[-1], b[-1]):
+                    fwd, bwd = (b, a) if swapped else (a, b)
+                    return np.stack(fwd + bwd[::-1])
+            a, b = b, a
+            swapped = not swapped
+        self._gap = (a, b, swapped)
+        return None
+
+    # -- contraction, checking, replanning -------------------------------------------------
+
+    def contract(self, path: Array) -> Array:
+        """Lazy states contraction: from each kept node, jump to the farthest node a valid
+        straight edge reaches (all candidate edges of a node checked in one batch)."""
+        out = [path[0]]
+        i, n = 0, len(path)
+        while i < n - 1:
+            self._tick()
+            js = np.arange(n - 1, i + 1, -1)
+            if js.size:
+                ok = self.checker.edges_valid(np.repeat(path[i][None], js.size, axis=0), path[js])
+                j = int(js[np.argmax(ok)]) if ok.any() else i + 1
+            else:
+                j = i + 1
+            out.append(path[j])
+            i = j
+        return np.stack(out)
+
+    def bad_edges(self, path: Array) -> np.ndarray:
+        return np.flatnonzero(~self.checker.edges_valid(path[:-1], path[1:]))
+
+    def replan(self, path: Array, bad: np.ndarray, *, neural: bool) -> Array:
+        """The path with each failing edge replaced by a neural (or RRT-Connect) segment;
+        edges that cannot be repaired are kept for the next round."""
+        pieces: list[Array] = []
+        prev = 0
+        for i in bad:
+            pieces.append(path[prev : i + 1])
+            seg = (
+                self.bidirectional(path[i], path[i + 1])
+                if neural
+                else self.rrtconnect(path[i], path[i + 1])
+            )
+            if seg is not None:
+                pieces.append(seg[1:-1])
+            prev = i + 1
+        pieces.append(path[prev:])
+        return np.concatenate([p for p in pieces if len(p)])
+
+    def rrtconnect(self, a: Array, b: Array) -> Array | None:
+        from planning.ompl_planners import OmplPlanner
+
+        left = self.deadline - time.perf_counter()
+        if left <= 0.01:
+            raise _Timeout
+        self.stats["fallback_segments"] += 1
+        res = OmplPlanner("rrtconnect").plan(self.checker, a, b, budget_s=left, rng=self.rng)
+        if res.status is PlanStatus.TIMEOUT:
+            raise _Timeout
+        return res.path
+
+    def fallback_gap(self, start: Array, goal: Array) -> Array | None:
+        """Hybrid: bridge the two trees' ends with RRT-Connect."""
+        a, b, swapped = self._gap
+        fwd, bwd = (b, a) if swapped else (a, b)
+        bridge = self.rrtconnect(fwd[-1], bwd[-1])
+        if bridge is None:
+            return None
+        return np.concatenate([np.stack(fwd), bridge[1:-1], np.stack(bwd[::-1])])
