@@ -9,10 +9,10 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from calibration.atomic import write_bytes_atomic
 from calibration.detect import Detection
 from calibration.pnp import dist_coeffs, project
 from calibration.targets import Charuco, SingleTag, Target
+from core.atomic import write_bytes_atomic
 from core.errors import CalibrationError
 
 Array = npt.NDArray[np.float64]
@@ -76,4 +76,4 @@ def save_png(path: str | os.PathLike[str], image: npt.NDArray[np.uint8]) -> Path
     ok, buf = cv2.imencode(".png", img)
     if not ok:
         raise CalibrationError(f"cannot encode a {img.shape} image as PNG")
-    return write_bytes_atomic(path, buf.tobytes())
+    return write_bytes_atomic(path, buf.tobytes(), CalibrationError)

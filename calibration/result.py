@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from calibration.atomic import write_bytes_atomic
+from core.atomic import write_bytes_atomic
 from core.errors import CalibrationError
 from core.transforms import from_xyz_quat, is_rigid, to_xyz_quat, transform_error
 
@@ -142,7 +142,7 @@ class CalibrationResult:
     def save_yaml(self, path: str | os.PathLike[str]) -> Path:
         """Write the YAML atomically (temporary file, then rename); returns the path."""
         text = yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=None)
-        return write_bytes_atomic(path, text.encode())
+        return write_bytes_atomic(path, text.encode(), CalibrationError)
 
 
 def _floats(a: npt.ArrayLike) -> Any:

@@ -13,7 +13,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from calibration.atomic import write_bytes_atomic
+from core.atomic import write_bytes_atomic
 from core.errors import ModelError
 from planning.neural.embodiment import Embodiment
 from planning.neural.models import MODEL_KINDS, ModelCfg, build_model
@@ -83,9 +83,9 @@ def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> str:
     )
     data = buf.getvalue()
     digest = hashlib.sha256(data).hexdigest()
-    write_bytes_atomic(path, data)
+    write_bytes_atomic(path, data, ModelError)
     card = dict(ckpt.card, sha256=digest, kind=ckpt.kind, step=ckpt.step)
-    write_bytes_atomic(card_path(path), json.dumps(card, indent=1).encode())
+    write_bytes_atomic(card_path(path), json.dumps(card, indent=1).encode(), ModelError)
     return digest
 
 

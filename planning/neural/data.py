@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from calibration.atomic import write_bytes_atomic
+from core.atomic import write_bytes_atomic
 from core.errors import GaideError, ModelError
 from planning.collision import SphereCollisionChecker
 from planning.families import FAMILIES, generate_problem, split_seed
@@ -146,7 +146,7 @@ def _make_shard(args: tuple[DataCfg, int, str]) -> dict[str, Any]:
             failures.append(r)
         else:
             rows.append(r)
-    write_bytes_atomic(Path(out) / shard_name(k), _shard_bytes(rows))
+    write_bytes_atomic(Path(out) / shard_name(k), _shard_bytes(rows), ModelError)
     return {
         "file": shard_name(k),
         "first": first,
@@ -196,7 +196,7 @@ def generate(
             "failures": sum(len(s["failures"]) for s in listed),
             "shards": listed,
         }
-        write_bytes_atomic(manifest_path, json.dumps(manifest, indent=1).encode())
+        write_bytes_atomic(manifest_path, json.dumps(manifest, indent=1).encode(), ModelError)
         return manifest
 
     manifest = save()

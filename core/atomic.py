@@ -6,17 +6,20 @@ import os
 import tempfile
 from pathlib import Path
 
-from core.errors import CalibrationError
+from core.errors import GaideError
 
 
-def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
-    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``."""
+def write_bytes_atomic(
+    path: str | os.PathLike[str], data: bytes, error: type[GaideError] = GaideError
+) -> Path:
+    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``;
+    an OS error becomes ``error`` (the caller's stage) naming the file."""
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     except OSError as err:
-        raise CalibrationError(f"cannot write {target}: {err}") from err
+        raise error(f"cannot write {target}: {err}") from err
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -25,5 +28,5 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
         os.replace(tmp, target)
     except OSError as err:
         Path(tmp).unlink(missing_ok=True)
-        raise CalibrationError(f"cannot write {target}: {err}") from err
+        raise error(f"cannot write {target}: {err}") from err
     return target
