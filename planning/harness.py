@@ -81,7 +81,12 @@ _ROBOT: tuple[RobotModel, SphereModel] | None = None
 
 def _init_worker(robot_config: str | None) -> None:
     global _ROBOT
+    import torch
+
     from planning.sphere_model import SphereModel
+
+    # One worker per core: a worker's own torch threads would only fight the others'.
+    torch.set_num_threads(1)
 
     robot = load_robot(robot_config)
     assert robot.config.spheres is not None

@@ -42,6 +42,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     tr.add_argument("--lr", type=float, default=1e-3)
     tr.add_argument("--seed", type=int, default=0)
     tr.add_argument("--device", default="auto", help="auto (CUDA if present), cpu or cuda[:N]")
+    tr.add_argument(
+        "--threads", type=int, default=0, help="CPU threads (default: all; 1 when sharing cores)"
+    )
     tr.add_argument("--resume", action="store_true", help="continue from --out if it exists")
     tr.add_argument("--robot", help="robot config YAML (default: UR5)")
     tr.set_defaults(func=cmd_train)
@@ -101,7 +104,12 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     robot, _ = robot_and_spheres(args.robot)
     cfg = TrainCfg(
-        steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, device=args.device
+        steps=args.steps,
+        batch=args.batch,
+        lr=args.lr,
+        seed=args.seed,
+        device=args.device,
+        threads=args.threads,
     )
     trainer = Trainer(args.model, robot, args.data, cfg)
     if args.resume and Path(args.out).exists():

@@ -89,15 +89,20 @@ def graph_mask(embodiment: Embodiment, scene_tokens: int) -> Tensor:
 class _Backbone(nn.Module):
     """What every model shares: the scene and robot set abstractions and MLP_I."""
 
-    def __init__(self, cfg: ModelCfg, embodiment: Embodiment, dof: int) -> None:
+    def __init__(
+        self, cfg: ModelCfg, embodiment: Embodiment, dof: int, robot_cloud: bool = True
+    ) -> None:
         super().__init__()
         h = cfg.hidden
         self.cfg, self.dof = cfg, dof
         self.scene_sa = SetAbstraction(
             cfg.scene_tokens, cfg.scene_radius, cfg.scene_nsample, (32, 64, h)
         )
-        self.robot_sa = SetAbstraction(
-            embodiment.n_tokens, cfg.robot_radius, cfg.robot_nsample, (32, 64, h)
+        # MPNet sees the robot only through q: it has no robot-cloud encoder.
+        self.robot_sa = (
+            SetAbstraction(embodiment.n_tokens, cfg.robot_radius, cfg.robot_nsample, (32, 64, h))
+            if robot_cloud
+            else None
         )
         self.register_buffer("token_idx", torch.from_numpy(embodiment.token_idx.copy()))
         self.mlp_i = _mlp([dof, h, h])
@@ -108,6 +113,8 @@ class _Backbone(nn.Module):
         return tokens
 
     def robot_tokens(self, robot: Tensor) -> Tensor:
+        if self.robot_sa is None:
+            raise ValueError("this model has no robot-cloud encoder")
         tokens, _ = self.robot_sa(robot, self.token_idx)
         return tokens
 
@@ -177,7 +184,7 @@ class MPNet(nn.Module):
     def __init__(self, cfg: ModelCfg, embodiment: Embodiment, dof: int) -> None:
         super().__init__()
         h = cfg.hidden
-        self.backbone = _Backbone(cfg, embodiment, dof)
+        self.backbone = _Backbone(cfg, embodiment, dof, robot_cloud=False)
         self.mlp = _mlp([3 * h, 8 * h, 4 * h, 2 * h, dof], cfg.mlp_dropout)
 
     def forward(self, robot: Tensor, scene_tokens: Tensor, q: Tensor, goal: Tensor) -> Tensor:

@@ -50,6 +50,7 @@ class TrainCfg:
     save_every: int = 500
     seed: int = 0
     device: str = "auto"
+    threads: int = 0  # CPU threads for torch; 0: torch's default (all cores)
 
     def check(self) -> None:
         if self.steps < 1 or self.batch < 1 or not self.lr > 0 or not 0 <= self.val_share < 1:
@@ -134,6 +135,8 @@ class Trainer:
         self.embodiment = build_embodiment(robot)
         self.robot_cloud = RobotCloud(robot, self.embodiment)
         self.device = pick_device(cfg.device)
+        if cfg.threads > 0:
+            torch.set_num_threads(cfg.threads)
         torch.manual_seed(cfg.seed)
         self.model = build_model(kind, self.model_cfg, self.embodiment, robot.dof).to(self.device)
         self.opt = torch.optim.AdamW(

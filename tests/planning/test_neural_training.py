@@ -1,0 +1,103 @@
+"""Training data and training: a resumable data set, a tiny model that overfits a handful of
+paths, the ``gaide train`` command with its model card and resume."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from core.errors import ModelError
+from planning.neural.data import DataCfg, generate, load_paths, read_manifest
+from planning.neural.models import ModelCfg
+from planning.neural.train import TrainCfg, Trainer
+from planning.robot_model import RobotModel
+from tests.conftest import run_cli
+
+TINY = ModelCfg(
+    hidden=32, heads=2, ff=64, enc_layers=2, dec_layers=1, scene_points=256, scene_tokens=8
+)
+DATA = DataCfg(families=("tabletop", "box"), paths=4, shard_size=2, oracle_budget_s=0.5)
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("data")
+    generate(DATA, out, workers=2)
+    return out
+
+
+def test_the_data_set_holds_resampled_oracle_paths_and_resumes(
+    data_dir: Path, robot: RobotModel, tmp_path: Path
+) -> None:
+    manifest = read_manifest(data_dir)
+    assert manifest["complete"] and len(manifest["shards"]) == 2
+    assert manifest["paths"] + manifest["failures"] == 4
+    ps = load_paths(data_dir)
+    assert len(ps.paths) == manifest["paths"] >= 3
+    assert ps.scenes.shape[1:] == (DATA.scene_points, 3)
+    for p in ps.paths:
+        steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        assert steps.max() <= DATA.max_step + 1e-5
+        assert (p >= robot.lower - 1e-6).all() and (p <= robot.upper + 1e-6).all()
+
+    # an interrupted run: one shard lost; the next run remakes it and keeps the other
+    copy = tmp_path / "copy"
+    copy.mkdir()
+    for f in data_dir.iterdir():
+        (copy / f.name).write_bytes(f.read_bytes())
+    kept = copy / "shard-00000.npz"
+    before = kept.stat().st_mtime_ns
+    (copy / "shard-00001.npz").unlink()
+    again = generate(DATA, copy, workers=1)
+    assert again["complete"] and (copy / "shard-00001.npz").is_file()
+    assert kept.stat().st_mtime_ns == before
+    with pytest.raises(ModelError, match="other settings"):
+        generate(DataCfg(families=("bins",), paths=4, shard_size=2), copy, workers=1)
+
+
+def test_a_corrupt_shard_or_a_missing_manifest_is_named(data_dir: Path, tmp_path: Path) -> None:
+    with pytest.raises(ModelError, match=r"no manifest\.json"):
+        load_paths(tmp_path)
+    for f in data_dir.iterdir():
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    (tmp_path / "shard-00001.npz").write_bytes(b"not a zip")
+    with pytest.raises(ModelError, match=r"shard-00001\.npz: corrupt"):
+        load_paths(tmp_path)
+
+
+def test_a_tiny_model_overfits_a_handful_of_paths(data_dir: Path, robot: RobotModel) -> None:
+    cfg = TrainCfg(steps=300, batch=32, lr=3e-3, warmup=20, val_share=0.0, val_every=50, seed=1)
+    model_cfg = ModelCfg(**{**TINY.to_dict(), "dropout": 0.0})
+    trainer = Trainer("gaide", robot, data_dir, cfg, model_cfg)
+    with torch.no_grad():
+        first = float(
+            trainer._loss(trainer._tensors(trainer.train_pairs, np.random.default_rng(0), 64))
+        )
+    trainer.run(data_dir / "overfit.pt")
+    last = trainer.history[-1]["train"]
+    assert last < 0.25 * first, f"loss {first:.4f} -> {last:.4f}"
+
+
+def test_gaide_train_writes_a_checkpoint_with_its_card_and_resumes(
+    data_dir: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "m.pt"
+    args = ["train", "--model", "mpnet", "--data", str(data_dir), "--out", str(out)]
+    first = run_cli(*args, "--steps", "6", "--batch", "8", "--device", "cpu", "--threads", "1")
+    assert first.returncode == 0, first.stderr
+    card = json.loads((tmp_path / "m.pt.card.json").read_text())
+    assert card["model"] == "mpnet" and card["steps"] == 6 and card["device"].startswith("cpu")
+    assert card["data_paths"] >= 3 and card["history"] and "sha256" in card
+    more = run_cli(
+        *args, "--steps", "10", "--batch", "8", "--device", "cpu", "--threads", "1", "--resume"
+    )
+    assert more.returncode == 0, more.stderr
+    assert json.loads((tmp_path / "m.pt.card.json").read_text())["steps"] == 10
+
+    bad = run_cli("train", "--model", "gaide", "--data", str(tmp_path), "--out", str(out))
+    assert bad.returncode == ModelError.exit_code
+    assert "not a data directory" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
