@@ -1,0 +1,147 @@
+"""The bidirectional neural planner (Algorithm 1 with contraction, edge checks, replanning and
+the hybrid fallback), driven by simple samplers so that each branch is exercised on purpose,
+and by the shipped GAIDE weights on task-family problems."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from core.errors import PlanningError
+from planning.collision import SphereCollisionChecker
+from planning.families import generate_problem, split_seed
+from planning.neural_planner import NeuralPlanner
+from planning.path_check import check_path
+from planning.planner import PlanStatus
+from planning.primitives import PrimitiveWorld
+from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+
+
+class Straight:
+    """Steps of at most ``step`` rad straight toward the target, with a little noise."""
+
+    name = "straight"
+
+    def __init__(self, step: float = 0.3, noise: float = 0.05, seed: int = 0) -> None:
+        self.step, self.noise = step, noise
+        self.rng = np.random.default_rng(seed)
+        self.calls = 0
+
+    def scene(self, cloud: Any) -> Any:
+        return None
+
+    def sample(self, scene: Any, q: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
+        self.calls += 1
+        d = goal - q
+        d *= min(1.0, self.step / max(float(np.linalg.norm(d)), 1e-12))
+        return q + d + self.noise * self.rng.standard_normal((n, len(q)))
+
+
+class Stuck(Straight):
+    """Proposes nothing useful: every rollout stays where it is."""
+
+    def sample(self, scene: Any, q: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
+        self.calls += 1
+        return np.repeat(q[None], n, axis=0)
+
+
+@pytest.fixture(scope="module")
+def box(robot: RobotModel, spheres: SphereModel) -> Any:
+    return generate_problem("box", split_seed("test", 1), robot, spheres)
+
+
+def _checker(robot: RobotModel, spheres: SphereModel, problem: Any) -> SphereCollisionChecker:
+    return SphereCollisionChecker(robot, spheres, problem.world)
+
+
+def test_free_space_gives_the_straight_edge(robot: RobotModel, spheres: SphereModel) -> None:
+    checker = SphereCollisionChecker(robot, spheres, PrimitiveWorld([]))
+    start = robot.named_configuration("home")
+    goal = start + np.array([0.4, -0.2, 0.1, 0.3, 0.0, 0.5])
+    planner = NeuralPlanner("straight", Straight())
+    res = planner.plan(
+        checker, start, goal, budget_s=5.0, rng=np.random.default_rng(0), cloud=np.zeros((1, 3))
+    )
+    assert res.status is PlanStatus.SUCCESS
+    assert np.array_equal(res.path, np.stack([start, goal]))
+
+
+def test_paper_mode_fails_honestly_where_the_sampler_cannot_help(
+    robot: RobotModel, spheres: SphereModel, box: Any
+) -> None:
+    checker = _checker(robot, spheres, box)
+    assert not checker.edge_valid(box.start, box.goal), "the test needs an obstructed problem"
+    stuck = Stuck()
+    res = NeuralPlanner("stuck", stuck, max_steps=10).plan(
+        checker, box.start, box.goal, budget_s=5.0, rng=np.random.default_rng(0)
+    )
+    assert res.status is PlanStatus.FAILED and res.path is None
+    assert "did not meet in 10 steps" in res.detail and stuck.calls == 10
+
+
+def test_hybrid_mode_bridges_what_the_sampler_cannot_with_rrt_connect(
+    robot: RobotModel, spheres: SphereModel, box: Any
+) -> None:
+    checker = _checker(robot, spheres, box)
+    res = NeuralPlanner("stuck-hybrid", Stuck(), mode="hybrid", max_steps=5).plan(
+        checker, box.start, box.goal, budget_s=10.0, rng=np.random.default_rng(0)
+    )
+    assert res.status is PlanStatus.SUCCESS, res.detail
+    assert res.stats["fallback_segments"] >= 1
+    assert check_path(res.path, box.start, box.goal, robot, spheres, box.world).ok
+
+
+def test_a_straight_sampler_solves_a_box_problem_and_every_edge_passes_the_harness(
+    robot: RobotModel, spheres: SphereModel, box: Any
+) -> None:
+    checker = _checker(robot, spheres, box)
+    res = NeuralPlanner("straight", Straight(noise=0.3), mode="hybrid", rollouts=16).plan(
+        checker, box.start, box.goal, budget_s=10.0, rng=np.random.default_rng(0)
+    )
+    assert res.status is PlanStatus.SUCCESS, res.detail
+    assert check_path(res.path, box.start, box.goal, robot, spheres, box.world).ok
+    assert res.stats["forward_passes"] >= 1
+
+
+def test_contraction_drops_every_node_a_straight_edge_can_skip(
+    robot: RobotModel, spheres: SphereModel
+) -> None:
+    from planning.neural_planner import _Run
+
+    checker = SphereCollisionChecker(robot, spheres, PrimitiveWorld([]))
+    planner = NeuralPlanner("straight", Straight())
+    run = _Run(planner, Straight(), checker, float("inf"), np.random.default_rng(0))
+    a = robot.named_configuration("home")
+    path = a + np.linspace(0, 1, 7)[:, None] * np.array([0.5, 0.2, -0.3, 0.1, 0.4, 0.0])
+    assert np.array_equal(run.contract(path), path[[0, -1]])
+
+
+def test_bad_endpoints_are_a_status_and_bad_settings_an_error(
+    robot: RobotModel, spheres: SphereModel, box: Any
+) -> None:
+    checker = _checker(robot, spheres, box)
+    folded = np.array([0.0, 0.3, 0.0, 0.0, 0.0, 0.0])  # the arm down through the box's floor
+    assert not checker.config_valid(folded[None])[0]
+    planner = NeuralPlanner("straight", Straight())
+    rng = np.random.default_rng(0)
+    res = planner.plan(checker, folded, box.goal, budget_s=1.0, rng=rng)
+    assert res.status is PlanStatus.START_INVALID and "collision" in res.detail
+    res = planner.plan(checker, box.start, robot.upper + 0.1, budget_s=1.0, rng=rng)
+    assert res.status is PlanStatus.GOAL_INVALID
+    with pytest.raises(PlanningError, match="mode must be one of"):
+        NeuralPlanner("x", Straight(), mode="fast")
+    with pytest.raises(PlanningError, match="budget_s"):
+        planner.plan(checker, box.start, box.goal, budget_s=0.0, rng=rng)
+
+
+def test_a_tiny_budget_times_out_saying_what_was_tried(
+    robot: RobotModel, spheres: SphereModel, box: Any
+) -> None:
+    checker = _checker(robot, spheres, box)
+    res = NeuralPlanner("stuck", Stuck(), mode="hybrid", max_steps=10_000).plan(
+        checker, box.start, box.goal, budget_s=0.05, rng=np.random.default_rng(0)
+    )
+    assert res.status is PlanStatus.TIMEOUT and "forward passes" in res.detail
