@@ -57,6 +57,7 @@ def oracle_path(
     budget_s: float = 10.0,
     max_step: float = 0.05,
     connect_runs: int = 4,
+    rescue_s: float = 0.0,
 ) -> PlanResult:
     """The best path found from ``start`` to ``goal`` (dof,) rad in about ``budget_s``
     seconds, resampled so that no step exceeds ``max_step`` rad.
@@ -64,7 +65,9 @@ def oracle_path(
     Returns a :class:`PlanResult` named ``oracle``: SUCCESS with the path (K, dof), start
     and goal exact; START_INVALID / GOAL_INVALID; TIMEOUT when no planner found a path in
     time; FAILED when a planner failed otherwise and none succeeded, or when no candidate's
-    resampled path passes the checker. ``stats`` holds every candidate's source and cost
+    resampled path passes the checker. When neither phase found a path, RRT-Connect gets up
+    to ``rescue_s`` more seconds (hard problems would otherwise be missing from training
+    data, biasing it toward easy ones). ``stats`` holds every candidate's source and cost
     (rad), every planner run's outcome, the winner, and the cost before resampling.
     """
     t0 = time.perf_counter()
@@ -102,6 +105,13 @@ def oracle_path(
     if res.path is not None:
         candidates.append(("aorrtc", _refine(res.path, checker, rng, deadline)))
 
+    if not candidates and rescue_s > 0:
+        res = rrtc.plan(checker, start, goal, budget_s=rescue_s, rng=rng)
+        runs.append(("rrtconnect-rescue", res.status.value, res.detail))
+        if res.path is not None:
+            rescue_end = time.perf_counter() + 0.25 * budget_s
+            candidates.append(("rrtconnect-rescue", _refine(res.path, checker, rng, rescue_end)))
+
     stats: dict[str, Any] = {
         "candidates": [(src, path_length(p)) for src, p in candidates],
         "runs": runs,
@@ -113,7 +123,7 @@ def oracle_path(
             PlanStatus.FAILED if failed else PlanStatus.TIMEOUT,
             None,
             time.perf_counter() - t0,
-            detail=f"no planner found a path in {budget_s:.3f} s"
+            detail=f"no planner found a path in {budget_s + rescue_s:.3f} s"
             + "".join(f"; {name}: {detail}" for name, _, detail in failed),
             stats=stats,
         )

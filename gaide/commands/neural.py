@@ -27,6 +27,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     gen.add_argument("--shard-size", type=int, default=50, help="paths per shard file")
     gen.add_argument("--max-step", type=float, default=0.3, help="path step (rad)")
     gen.add_argument("--oracle-budget", type=float, default=2.0, help="seconds per path")
+    gen.add_argument(
+        "--oracle-rescue", type=float, default=3.0, help="more seconds for a missed problem"
+    )
     gen.add_argument("--workers", type=int, help="processes (default: all cores)")
     gen.add_argument("--robot", help="robot config YAML (default: UR5)")
     gen.set_defaults(func=cmd_data_generate)
@@ -75,6 +78,7 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
         shard_size=args.shard_size,
         max_step=args.max_step,
         oracle_budget_s=args.oracle_budget,
+        oracle_rescue_s=args.oracle_rescue,
     )
     t0 = time.perf_counter()
     bar = tqdm(desc="shards", unit="shard")

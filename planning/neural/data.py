@@ -54,6 +54,7 @@ class DataCfg:
     max_step: float = 0.3  # rad, Euclidean joint step of the stored paths
     scene_points: int = 2048
     oracle_budget_s: float = 1.5
+    oracle_rescue_s: float = 3.0  # more RRT-Connect time for a problem the oracle missed
 
     def check(self) -> None:
         bad = [f for f in self.families if f not in FAMILIES]
@@ -63,7 +64,12 @@ class DataCfg:
             raise ModelError(
                 f"need paths >= 1 and shard_size >= 1; got {self.paths}, {self.shard_size}"
             )
-        if not (0 < self.max_step <= 1.0) or self.scene_points < 64 or not self.oracle_budget_s > 0:
+        if (
+            not (0 < self.max_step <= 1.0)
+            or self.scene_points < 64
+            or not self.oracle_budget_s > 0
+            or self.oracle_rescue_s < 0
+        ):
             raise ModelError(
                 "need 0 < max_step <= 1 rad, scene_points >= 64, oracle_budget_s > 0; got "
                 f"{self.max_step}, {self.scene_points}, {self.oracle_budget_s}"
@@ -94,6 +100,7 @@ def one_path(
         rng,
         budget_s=cfg.oracle_budget_s,
         max_step=cfg.max_step,
+        rescue_s=cfg.oracle_rescue_s,
     )
     if res.path is None:
         return f"{fam} seed {seed}: oracle {res.status.value}: {res.detail}"
