@@ -1,0 +1,79 @@
+"""Writing trajectories and joint logs in the format each output path names.
+
+A trajectory: ``.csv`` and ``.json`` (:mod:`execution.trajectory_io`), ``.bag`` (ROS1) and a
+suffix-less path (a ROS2 bag folder, ``storage`` sqlite3 or mcap) holding one
+``trajectory_msgs/JointTrajectory`` (:mod:`execution.ros_bags`). A joint log: ``.csv``
+(:mod:`execution.joint_log`), ``.bag`` or a ROS2 folder of ``sensor_msgs/JointState``.
+
+Every output is written to a temporary sibling first and all are renamed into place only
+when all were written: on any error nothing is left half-written, and no output of the call
+is created.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from core.errors import ExecutionError
+from execution.joint_log import JointLog, log_csv
+from execution.ros_bags import ros_version_of, write_joint_state_bag, write_trajectory_bag
+from execution.staging import staged_outputs
+from execution.trajectory import TimedTrajectory
+from execution.trajectory_io import trajectory_csv, trajectory_json
+
+TRAJECTORY_FORMATS = ".csv, .json, .bag (ROS1) or a folder name without a suffix (ROS2)"
+LOG_FORMATS = ".csv, .bag (ROS1) or a folder name without a suffix (ROS2)"
+
+
+def _check(paths: Sequence[str | Path], allowed: tuple[str, ...], formats: str) -> list[Path]:
+    out = [Path(p) for p in paths]
+    if not out:
+        raise ExecutionError(f"no output given; formats: {formats}")
+    for p in out:
+        if p.suffix not in allowed:
+            raise ExecutionError(f"{p}: unknown output format '{p.suffix}'; valid: {formats}")
+    return out
+
+
+def write_trajectory(
+    traj: TimedTrajectory, paths: Sequence[str | Path], *, storage: str = "sqlite3"
+) -> list[Path]:
+    """Write ``traj`` to every path, each in the format its suffix names."""
+    targets = _check(paths, (".csv", ".json", ".bag", ""), TRAJECTORY_FORMATS)
+    with staged_outputs(targets, ExecutionError) as staged:
+        for target, tmp in zip(targets, staged, strict=True):
+            if target.suffix == ".csv":
+                tmp.write_text(trajectory_csv(traj))
+            elif target.suffix == ".json":
+                tmp.write_text(trajectory_json(traj))
+            else:
+                write_trajectory_bag(traj, tmp, ros_version=ros_version_of(target), storage=storage)
+    return targets
+
+
+def write_log(
+    joint_log: JointLog, paths: Sequence[str | Path], *, storage: str = "sqlite3"
+) -> list[Path]:
+    """Write ``joint_log`` to every path, each in the format its suffix names."""
+    targets = _check(paths, (".csv", ".bag", ""), LOG_FORMATS)
+    with staged_outputs(targets, ExecutionError) as staged:
+        for target, tmp in zip(targets, staged, strict=True):
+            if target.suffix == ".csv":
+                tmp.write_text(log_csv(joint_log))
+            else:
+                write_joint_state_bag(
+                    joint_log, tmp, ros_version=ros_version_of(target), storage=storage
+                )
+    return targets
+
+
+def read_log(path: str | Path, topic: str | None = None) -> JointLog:
+    """A joint log from a CSV file (this project's or ``rostopic echo -p``'s) or a bag."""
+    from execution.joint_log import read_log_csv
+    from execution.ros_bags import read_joint_state_bag
+
+    source = Path(path)
+    if source.suffix == ".csv":
+        return read_log_csv(source)
+    return read_joint_state_bag(source, topic)

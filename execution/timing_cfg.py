@@ -1,0 +1,77 @@
+"""How a path is timed: the controller rate, the mode, the limits' scale factors and overrides."""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+from core.errors import TimingError
+
+
+class TimingMode(enum.Enum):
+    """``EXACT``: stop at every waypoint; each segment is a straight joint-space line (Ruckig,
+    phase-synchronized, rest to rest), so the trajectory follows the checked path exactly.
+    ``BLENDED``: pass through the waypoints without stopping; the swept trajectory is
+    re-checked for collision and a colliding blend falls back to exact segments."""
+
+    EXACT = "exact"
+    BLENDED = "blended"
+
+    @staticmethod
+    def parse(text: str) -> TimingMode:
+        try:
+            return TimingMode(text)
+        except ValueError as err:
+            raise TimingError(
+                f"unknown timing mode '{text}'; valid: {[m.value for m in TimingMode]}"
+            ) from err
+
+
+@dataclass(frozen=True, kw_only=True)
+class TimingCfg:
+    """Settings of a time parameterization."""
+
+    rate_hz: float = 500.0  # Hz, controller rate: the trajectory's sample rate
+    mode: TimingMode = TimingMode.BLENDED
+    velocity_scale: float = 1.0  # (0, 1], multiplies the velocity limits
+    acceleration_scale: float = 1.0  # (0, 1], multiplies the acceleration limits
+    jerk_scale: float = 1.0  # (0, 1], multiplies the jerk limits
+    max_velocity: tuple[float, ...] | None = None  # rad/s per joint; None: robot config
+    max_acceleration: tuple[float, ...] | None = None  # rad/s^2 per joint; None: robot config
+    max_jerk: tuple[float, ...] | None = None  # rad/s^3 per joint; None: robot config
+    shortcut: bool = True  # shorten the path (checked straight edges) before timing it
+    blend_levels: int = 12  # waypoint speeds tried per waypoint (blended mode)
+    blend_sweeps: int = 3  # passes over the waypoints when choosing their speeds
+    blend_retries: int = 2  # halvings of a colliding blend's speeds before it becomes exact
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.rate_hz) and 1.0 <= self.rate_hz <= 100_000.0):
+            raise TimingError(f"rate_hz must be in [1, 100000] Hz, got {self.rate_hz}")
+        if not isinstance(self.mode, TimingMode):
+            raise TimingError(f"mode must be a TimingMode, got {self.mode!r}")
+        for name in ("velocity_scale", "acceleration_scale", "jerk_scale"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 < value <= 1.0):
+                raise TimingError(f"{name} must be in (0, 1], got {value}")
+        for name, unit in (
+            ("max_velocity", "rad/s"),
+            ("max_acceleration", "rad/s^2"),
+            ("max_jerk", "rad/s^3"),
+        ):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            object.__setattr__(self, name, tuple(float(v) for v in value))
+            if not all(math.isfinite(v) and v > 0 for v in getattr(self, name)):
+                raise TimingError(f"{name} must be finite values > 0 {unit}, got {list(value)}")
+        if self.blend_levels < 2 or self.blend_sweeps < 1 or self.blend_retries < 0:
+            raise TimingError(
+                "need blend_levels >= 2, blend_sweeps >= 1 and blend_retries >= 0, got "
+                f"{self.blend_levels}, {self.blend_sweeps}, {self.blend_retries}"
+            )
+
+    @property
+    def dt(self) -> float:
+        """Sample period (s)."""
+        return 1.0 / self.rate_hz
