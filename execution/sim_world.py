@@ -1,0 +1,230 @@
+"""The robot and its scene in PyBullet (DIRECT: no window), for simulated execution.
+
+The robot is the URDF the robot config names, loaded with a fixed base at ``T_world_base``;
+its mesh URIs (``package://``, relative paths) are resolved as Pinocchio resolves them and its
+visual geometry and Gazebo tags are dropped (a temporary copy; the original is untouched).
+The scene: analytic primitives as static boxes, cylinders and spheres, one body each (as
+:class:`planning.mesh_reference.MeshReference` builds them), or a point cloud as static voxel
+boxes (one box per occupied cell of ``voxel`` m).
+"""
+
+from __future__ import annotations
+
+import logging
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pybullet as pb
+from scipy.spatial.transform import Rotation
+
+from core.errors import ExecutionError
+from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere
+from planning.robot_config import resolve_uri
+from planning.robot_model import RobotModel
+
+Array = npt.NDArray[np.float64]
+log = logging.getLogger(__name__)
+
+
+def _bare_urdf(robot: RobotModel, folder: Path) -> Path:
+    """A copy of the robot's URDF with absolute mesh paths and no visual or Gazebo tags."""
+    cfg = robot.config
+    try:
+        root = ET.parse(cfg.urdf).getroot()
+    except (ET.ParseError, OSError) as err:
+        raise ExecutionError(f"URDF {cfg.urdf} cannot be read: {err}") from err
+    for link in root.iter("link"):
+        for visual in link.findall("visual"):
+            link.remove(visual)
+    for tag in ("gazebo", "transmission"):
+        for el in root.findall(tag):
+            root.remove(el)
+    for mesh in root.iter("mesh"):
+        uri = mesh.get("filename", "")
+        mesh.set("filename", str(resolve_uri(uri, cfg.urdf.parent, cfg.package_dirs)))
+    out = folder / cfg.urdf.name
+    ET.ElementTree(root).write(out)
+    return out
+
+
+class SimWorld:
+    """A PyBullet client holding the robot and the scene; close it (or use ``with``)."""
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        *,
+        primitives: PrimitiveWorld | None = None,
+        cloud: Array | None = None,
+        voxel: float = 0.02,
+        rate_hz: float = 500.0,
+        gravity: bool = True,
+    ) -> None:
+        if primitives is not None and cloud is not None:
+            raise ExecutionError("give the scene as primitives or as a cloud, not both")
+        self.robot = robot
+        self.client = pb.connect(pb.DIRECT)
+        try:
+            pb.setTimeStep(1.0 / rate_hz, physicsClientId=self.client)
+            pb.setGravity(0, 0, -9.81 if gravity else 0.0, physicsClientId=self.client)
+            self._load_robot()
+            self.scene_labels: dict[int, str] = {}
+            if primitives is not None:
+                self._add_primitives(primitives)
+            if cloud is not None:
+                self._add_voxels(np.asarray(cloud, float), voxel)
+        except Exception:
+            self.close()
+            raise
+
+    # -- building ------------------------------------------------------------------------
+
+    def _load_robot(self) -> None:
+        robot, c = self.robot, self.client
+        with tempfile.TemporaryDirectory(prefix="gaide-urdf-") as tmp:
+            urdf = _bare_urdf(robot, Path(tmp))
+            T = robot.T_world_base
+            try:
+                self.body = pb.loadURDF(
+                    str(urdf),
+                    basePosition=T[:3, 3].tolist(),
+                    baseOrientation=Rotation.from_matrix(T[:3, :3]).as_quat().tolist(),
+                    useFixedBase=True,
+                    physicsClientId=c,
+                )
+            except pb.error as err:
+                raise ExecutionError(f"PyBullet cannot load {robot.config.urdf}: {err}") from err
+        by_name: dict[str, int] = {}
+        self.link_names: dict[int, str] = {
+            -1: pb.getBodyInfo(self.body, physicsClientId=c)[0].decode()
+        }
+        self.effort_limits = np.zeros(robot.dof)
+        for j in range(pb.getNumJoints(self.body, physicsClientId=c)):
+            info = pb.getJointInfo(self.body, j, physicsClientId=c)
+            by_name[info[1].decode()] = j
+            self.link_names[j] = info[12].decode()
+        missing = [n for n in robot.joint_names if n not in by_name]
+        if missing:
+            raise ExecutionError(f"PyBullet's model of {robot.config.urdf} lacks joints {missing}")
+        self.joints = [by_name[n] for n in robot.joint_names]
+        for i, j in enumerate(self.joints):
+            effort = pb.getJointInfo(self.body, j, physicsClientId=c)[10]
+            self.effort_limits[i] = effort if effort > 0 else 1000.0
+        # PyBullet drives every joint with a velocity motor by default: switch those off.
+        pb.setJointMotorControlArray(
+            self.body, self.joints, pb.VELOCITY_CONTROL, forces=[0.0] * len(self.joints),
+            physicsClientId=c,
+        )  # fmt: skip
+
+    def _add_body(self, shape: int, position: Array, orientation: Array, label: str) -> None:
+        body = pb.createMultiBody(
+            baseMass=0,
+            baseCollisionShapeIndex=shape,
+            basePosition=position.tolist(),
+            baseOrientation=orientation.tolist(),
+            physicsClientId=self.client,
+        )
+        self.scene_labels[body] = label
+
+    def _add_primitives(self, world: PrimitiveWorld) -> None:
+        c = self.client
+        for i, prim in enumerate(world.primitives):
+            if isinstance(prim, Sphere):
+                shape = pb.createCollisionShape(
+                    pb.GEOM_SPHERE, radius=prim.radius, physicsClientId=c
+                )
+                self._add_body(shape, prim.center, np.array([0, 0, 0, 1.0]), f"sphere {i}")
+                continue
+            if isinstance(prim, Box):
+                shape = pb.createCollisionShape(
+                    pb.GEOM_BOX, halfExtents=(prim.size / 2).tolist(), physicsClientId=c
+                )
+                label = f"box {i}"
+            elif isinstance(prim, Cylinder):
+                shape = pb.createCollisionShape(
+                    pb.GEOM_CYLINDER, radius=prim.radius, height=prim.height, physicsClientId=c
+                )
+                label = f"cylinder {i}"
+            quat = Rotation.from_matrix(prim.pose[:3, :3]).as_quat()
+            self._add_body(shape, prim.pose[:3, 3], quat, label)
+
+    def _add_voxels(self, points: Array, voxel: float) -> None:
+        if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
+            raise ExecutionError(
+                f"a cloud must be finite points of shape (N, 3), got {points.shape}"
+            )
+        if not voxel > 0:
+            raise ExecutionError(f"voxel must be > 0 m, got {voxel}")
+        cells = np.unique(np.floor(points / voxel).astype(np.int64), axis=0)
+        centres = (cells + 0.5) * voxel
+        shape = pb.createCollisionShape(
+            pb.GEOM_BOX, halfExtents=[voxel / 2] * 3, physicsClientId=self.client
+        )
+        bodies = pb.createMultiBody(
+            baseMass=0,
+            baseCollisionShapeIndex=shape,
+            batchPositions=centres.tolist(),
+            physicsClientId=self.client,
+        )
+        ids = bodies if isinstance(bodies, (list, tuple)) else [bodies]
+        for body, centre in zip(ids, centres, strict=False):
+            self.scene_labels[int(body)] = f"voxel at {np.round(centre, 3).tolist()}"
+        log.debug("cloud: %d points as %d voxel boxes of %.3f m", len(points), len(centres), voxel)
+
+    # -- running -------------------------------------------------------------------------
+
+    def reset(self, q: Array) -> None:
+        """Put the robot at configuration q (dof,) rad, at rest."""
+        for j, value in zip(self.joints, q.tolist(), strict=True):
+            pb.resetJointState(self.body, j, value, 0.0, physicsClientId=self.client)
+
+    def command(self, q: Array, qd: Array, position_gain: float, velocity_gain: float) -> None:
+        """Position control towards q (rad) with velocity feed-forward qd (rad/s), each joint
+        limited to its URDF effort."""
+        n = len(self.joints)
+        pb.setJointMotorControlArray(
+            self.body,
+            self.joints,
+            pb.POSITION_CONTROL,
+            targetPositions=q.tolist(),
+            targetVelocities=qd.tolist(),
+            positionGains=[position_gain] * n,
+            velocityGains=[velocity_gain] * n,
+            forces=self.effort_limits.tolist(),
+            physicsClientId=self.client,
+        )
+
+    def step(self) -> None:
+        pb.stepSimulation(physicsClientId=self.client)
+
+    def state(self) -> tuple[Array, Array]:
+        """Joint positions (rad) and velocities (rad/s), (dof,) each."""
+        states = pb.getJointStates(self.body, self.joints, physicsClientId=self.client)
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def contacts(self, ignored_links: tuple[str, ...] = ()) -> list[tuple[str, str, float]]:
+        """(robot link, scene body label, distance m) of the robot-scene contacts of the last
+        step (touching or penetrating)."""
+        out = []
+        for pt in pb.getContactPoints(bodyA=self.body, physicsClientId=self.client):
+            other, link, distance = pt[2], pt[3], pt[8]
+            if other not in self.scene_labels or distance > 0.0:
+                continue
+            name = self.link_names.get(link, str(link))
+            if name in ignored_links:
+                continue
+            out.append((name, self.scene_labels[other], float(distance)))
+        return out
+
+    def close(self) -> None:
+        if pb.isConnected(self.client):
+            pb.disconnect(self.client)
+
+    def __enter__(self) -> SimWorld:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
