@@ -1,0 +1,90 @@
+"""Pictures (PNG, matplotlib's Agg backend) of a timed trajectory and of a comparison."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import numpy.typing as npt
+
+from core.atomic import write_bytes_atomic
+from core.errors import ExecutionError
+from execution.compare import CompareResult
+from execution.limits import JointLimits
+from execution.trajectory import TimedTrajectory
+
+Array = npt.NDArray[np.float64]
+
+
+def _save(fig: plt.Figure, path: str | Path) -> Path:
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return write_bytes_atomic(path, buf.getvalue(), ExecutionError)
+
+
+def plot_trajectory(
+    traj: TimedTrajectory, path: str | Path, limits: JointLimits | None = None
+) -> Path:
+    """Position, velocity, acceleration and jerk of every joint against time, each joint's
+    limits dashed in its colour. Jerk is the trajectory's own, or the finite difference of
+    its accelerations when it has none."""
+    lim = limits or traj.limits
+    jerk = traj.jerk if traj.jerk is not None else np.gradient(traj.qdd, traj.t, axis=0)
+    rows = (
+        ("position (rad)", traj.q, None if lim is None else (lim.lower, lim.upper)),
+        ("velocity (rad/s)", traj.qd, None if lim is None else (-lim.velocity, lim.velocity)),
+        (
+            "acceleration (rad/s²)",
+            traj.qdd,
+            None if lim is None else (-lim.acceleration, lim.acceleration),
+        ),
+        ("jerk (rad/s³)", jerk, None if lim is None else (-lim.jerk, lim.jerk)),
+    )
+    fig, axes = plt.subplots(4, 1, figsize=(10, 11), sharex=True)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for ax, (label, values, bounds) in zip(axes, rows, strict=True):
+        for j, name in enumerate(traj.joint_names):
+            colour = colours[j % len(colours)]
+            ax.plot(traj.t, values[:, j], color=colour, lw=1.2, label=name)
+            if bounds is not None:
+                for b in (bounds[0][j], bounds[1][j]):
+                    ax.axhline(b, color=colour, ls="--", lw=0.7, alpha=0.7)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize=7, ncol=3)
+    axes[-1].set_xlabel("t (s)")
+    mode = traj.mode.value if traj.mode is not None else "trajectory"
+    axes[0].set_title(f"{mode}: {traj.duration:.3f} s at {traj.rate_hz:g} Hz (dashed: limits)")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_comparison(result: CompareResult, path: str | Path) -> Path:
+    """Planned (solid) and logged (dotted) positions per joint after alignment, and the
+    tracking error."""
+    fig, axes = plt.subplots(2, 1, figsize=(10, 8), sharex=True)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for j, name in enumerate(result.joint_names):
+        colour = colours[j % len(colours)]
+        axes[0].plot(result.t, result.planned[:, j], color=colour, lw=1.2, label=name)
+        axes[0].plot(result.t, result.logged[:, j], color=colour, lw=1.2, ls=":")
+        axes[1].plot(result.t, 1e3 * result.error[:, j], color=colour, lw=1.0, label=name)
+    axes[0].set_ylabel("position (rad)")
+    axes[0].legend(loc="upper right", fontsize=7, ncol=3)
+    axes[0].set_title(
+        f"plan (solid) vs log (dotted), log delayed {1e3 * result.delay_s:.1f} ms "
+        f"(correlation {result.correlation:.3f})"
+    )
+    axes[1].set_ylabel("log - plan (mrad)")
+    axes[1].set_xlabel("plan time (s)")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
