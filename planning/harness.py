@@ -25,7 +25,7 @@ from planning.families import FAMILIES, generate_problem, split_seed
 from planning.path_check import check_path
 from planning.planner import PlanStatus
 from planning.problem import Problem, load_problems, problem_from_dict
-from planning.registry import make_planner, planner_names
+from planning.registry import CLASSICAL, make_planner, planner_names
 from planning.robot_model import RobotModel, load_robot
 from planning.sphere_model import SphereModel
 
@@ -266,9 +266,14 @@ def run_harness(
                 mean = float(np.mean(times)) if times else ref_budget
                 for p in cfg.planners:
                     if p != cfg.reference:
-                        budgets[fam][p] = max(mean, 0.05)
+                        # As the paper: the classical planners get the reference's mean time;
+                        # the other neural planners run under the same budget as the reference.
+                        budgets[fam][p] = max(mean, 0.05) if p in CLASSICAL else ref_budget
             others = [p for p in cfg.planners if p != cfg.reference]
-            notes.append(f"budget auto: each family's mean {cfg.reference} time")
+            notes.append(
+                f"budget auto: the classical planners get each family's mean {cfg.reference} "
+                f"time; neural planners {ref_budget} s"
+            )
         else:
             fixed = cfg.budget_s if cfg.budget_s is not None else cfg.fallback_budget_s
             if cfg.budget_s is None:

@@ -40,7 +40,7 @@ def test_oracle_path_is_the_shortest_candidate_resampled(
     assert res.stats["winner"] in costs
     assert res.stats["cost_before_resample"] == min(costs.values())
     assert res.cost == pytest.approx(min(costs.values()), rel=1e-9)
-    assert res.time_s <= 2.0 + 0.5
+    assert res.time_s <= 2.0 + 1.0  # slack for a loaded machine
 
 
 def test_oracle_statuses(
