@@ -12,7 +12,7 @@ is created.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from core.errors import ExecutionError
@@ -37,11 +37,19 @@ def _check(paths: Sequence[str | Path], allowed: tuple[str, ...], formats: str) 
 
 
 def write_trajectory(
-    traj: TimedTrajectory, paths: Sequence[str | Path], *, storage: str = "sqlite3"
+    traj: TimedTrajectory,
+    paths: Sequence[str | Path],
+    *,
+    storage: str = "sqlite3",
+    extra: Mapping[Path, bytes] | None = None,
 ) -> list[Path]:
-    """Write ``traj`` to every path, each in the format its suffix names."""
+    """Write ``traj`` to every path, each in the format its suffix names, and the ``extra``
+    files (path -> bytes: a plot, a report) in the same all-or-nothing step."""
     targets = _check(paths, (".csv", ".json", ".bag", ""), TRAJECTORY_FORMATS)
-    with staged_outputs(targets, ExecutionError) as staged:
+    extra = dict(extra or {})
+    with staged_outputs([*targets, *extra], ExecutionError) as staged:
+        for tmp, data in zip(staged[len(targets) :], extra.values(), strict=True):
+            tmp.write_bytes(data)
         for target, tmp in zip(targets, staged, strict=True):
             if target.suffix == ".csv":
                 tmp.write_text(trajectory_csv(traj))
@@ -53,11 +61,19 @@ def write_trajectory(
 
 
 def write_log(
-    joint_log: JointLog, paths: Sequence[str | Path], *, storage: str = "sqlite3"
+    joint_log: JointLog,
+    paths: Sequence[str | Path],
+    *,
+    storage: str = "sqlite3",
+    extra: Mapping[Path, bytes] | None = None,
 ) -> list[Path]:
-    """Write ``joint_log`` to every path, each in the format its suffix names."""
-    targets = _check(paths, (".csv", ".bag", ""), LOG_FORMATS)
-    with staged_outputs(targets, ExecutionError) as staged:
+    """Write ``joint_log`` to every path, each in the format its suffix names, and the
+    ``extra`` files (path -> bytes) in the same all-or-nothing step."""
+    targets = _check(paths, (".csv", ".bag", ""), LOG_FORMATS) if paths else []
+    extra = dict(extra or {})
+    with staged_outputs([*targets, *extra], ExecutionError) as staged:
+        for tmp, data in zip(staged[len(targets) :], extra.values(), strict=True):
+            tmp.write_bytes(data)
         for target, tmp in zip(targets, staged, strict=True):
             if target.suffix == ".csv":
                 tmp.write_text(log_csv(joint_log))

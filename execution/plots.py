@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import matplotlib
@@ -20,19 +21,27 @@ from execution.trajectory import TimedTrajectory
 Array = npt.NDArray[np.float64]
 
 
-def _save(fig: plt.Figure, path: str | Path) -> Path:
-    import io
-
+def _png(fig: plt.Figure) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
-    return write_bytes_atomic(path, buf.getvalue(), ExecutionError)
+    return buf.getvalue()
 
 
 def plot_trajectory(
     traj: TimedTrajectory, path: str | Path, limits: JointLimits | None = None
 ) -> Path:
-    """Position, velocity, acceleration and jerk of every joint against time, each joint's
+    """Write :func:`trajectory_png` to ``path`` (atomically)."""
+    return write_bytes_atomic(path, trajectory_png(traj, limits), ExecutionError)
+
+
+def plot_comparison(result: CompareResult, path: str | Path) -> Path:
+    """Write :func:`comparison_png` to ``path`` (atomically)."""
+    return write_bytes_atomic(path, comparison_png(result), ExecutionError)
+
+
+def trajectory_png(traj: TimedTrajectory, limits: JointLimits | None = None) -> bytes:
+    """PNG of position, velocity, acceleration and jerk of every joint against time, each joint's
     limits dashed in its colour. Jerk is the trajectory's own, or the finite difference of
     its accelerations when it has none."""
     lim = limits or traj.limits
@@ -63,11 +72,11 @@ def plot_trajectory(
     mode = traj.mode.value if traj.mode is not None else "trajectory"
     axes[0].set_title(f"{mode}: {traj.duration:.3f} s at {traj.rate_hz:g} Hz (dashed: limits)")
     fig.tight_layout()
-    return _save(fig, path)
+    return _png(fig)
 
 
-def plot_comparison(result: CompareResult, path: str | Path) -> Path:
-    """Planned (solid) and logged (dotted) positions per joint after alignment, and the
+def comparison_png(result: CompareResult) -> bytes:
+    """PNG of planned (solid) and logged (dotted) positions per joint after alignment, and the
     tracking error."""
     fig, axes = plt.subplots(2, 1, figsize=(10, 8), sharex=True)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -87,4 +96,4 @@ def plot_comparison(result: CompareResult, path: str | Path) -> Path:
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    return _save(fig, path)
+    return _png(fig)

@@ -8,7 +8,7 @@ import sys
 
 from core.errors import GaideError
 from gaide import demo
-from gaide.commands import bench, neural, perception, record, robot, scenes
+from gaide.commands import bench, execution, neural, perception, record, robot, scenes
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -22,6 +22,7 @@ def build_parser() -> argparse.ArgumentParser:
     scenes.add_parser(sub)
     bench.add_parser(sub)
     neural.add_parser(sub)
+    execution.add_parser(sub)
     return parser
 
 

@@ -8,6 +8,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from gaide.commands.execution import add_bench_parser
 from gaide.common import print_table, robot_and_spheres, write_json
 from planning.bench_collision import CollisionBenchCfg, run_collision_benchmark
 
@@ -68,6 +69,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     sam.add_argument("--robot", help="robot config YAML (default: UR5)")
     sam.add_argument("--json", help="write the figures to this JSON file")
     sam.set_defaults(func=cmd_sampler)
+    add_bench_parser(bsub)  # gaide bench timing (issue 6)
 
 
 def cmd_collision(args: argparse.Namespace) -> int:
