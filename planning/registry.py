@@ -8,10 +8,11 @@ from core.errors import PlanningError
 from planning.planner import Planner
 
 CLASSICAL = ("rrtconnect", "rrtstar", "informed_rrtstar", "bitstar", "aorrtc")
-# Neural planners, paper mode (no fallback), with the repository's shipped weights; and
-# GAIDE in hybrid mode (RRT-Connect for what the network cannot repair).
+# Neural planners, paper mode (no fallback), with the repository's shipped weights; and in
+# hybrid mode (RRT-Connect for what the network cannot repair): GAIDE, and its ablations for
+# Table II in both modes.
 NEURAL = ("gaide", "gaide-v", "gaide-h", "mpnet", "simpnet")
-HYBRID = ("gaide-hybrid",)
+HYBRID = ("gaide-hybrid", "gaide-v-hybrid", "gaide-h-hybrid")
 
 
 def _factories() -> dict[str, Callable[[], Planner]]:
@@ -24,9 +25,11 @@ def _factories() -> dict[str, Callable[[], Planner]]:
         out[name] = lambda name=name: OmplPlanner(name)  # type: ignore[misc]
     for name in NEURAL:
         out[name] = lambda name=name: NeuralPlanner(name, shipped_checkpoint(name))  # type: ignore[misc]
-    out["gaide-hybrid"] = lambda: NeuralPlanner(
-        "gaide-hybrid", shipped_checkpoint("gaide"), mode="hybrid"
-    )
+    for name in HYBRID:
+        kind = name.removesuffix("-hybrid")
+        out[name] = lambda name=name, kind=kind: NeuralPlanner(  # type: ignore[misc]
+            name, shipped_checkpoint(kind), mode="hybrid"
+        )
     return out
 
 

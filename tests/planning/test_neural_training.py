@@ -101,3 +101,32 @@ def test_gaide_train_writes_a_checkpoint_with_its_card_and_resumes(
     bad = run_cli("train", "--model", "gaide", "--data", str(tmp_path), "--out", str(out))
     assert bad.returncode == ModelError.exit_code
     assert "not a data directory" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_gaide_plan_writes_a_checked_path_or_one_line_with_the_status(
+    data_dir: Path, tmp_path: Path
+) -> None:
+    ckpt = tmp_path / "tiny.pt"
+    trained = run_cli(
+        *("train", "--model", "mpnet", "--data", str(data_dir), "--out", str(ckpt)),
+        *("--steps", "4", "--batch", "8", "--device", "cpu", "--threads", "1"),
+    )
+    assert trained.returncode == 0, trained.stderr
+    out = tmp_path / "path.json"
+    # hybrid mode: whatever the barely trained network cannot do, RRT-Connect bridges
+    ok = run_cli(
+        *("plan", "--family", "box", "--planner", "gaide-hybrid", "--checkpoint", str(ckpt)),
+        *("--budget", "30", "-o", str(out)),
+    )
+    assert ok.returncode == 0, ok.stderr
+    plan = json.loads(out.read_text())
+    assert plan["status"] == "success" and len(plan["path"]) >= 2
+    assert plan["joint_names"][0] == "shoulder_pan_joint" and plan["scene"].startswith("box seed")
+
+    bad_out = tmp_path / "bad.json"
+    bad = run_cli(
+        *("plan", "--family", "box", "--start", "0,0.3,0,0,0,0", "--planner", "rrtconnect"),
+        *("-o", str(bad_out)),
+    )
+    assert bad.returncode == 7 and "start_invalid" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1 and not bad_out.exists()
