@@ -7,21 +7,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-from planning.robot_model import RobotModel, load_robot
-from planning.sphere_model import SphereModel
-from planning.spherize import generate_spheres
+from planning.robot_setup import robot_and_spheres
 
-
-def robot_and_spheres(config: str | None) -> tuple[RobotModel, SphereModel]:
-    """The robot of ``config`` (default UR5) and its sphere model (generated if the config
-    names no sphere file)."""
-    robot = load_robot(config)
-    if robot.config.spheres is not None:
-        spheres = SphereModel.load(robot.config.spheres)
-    else:
-        spheres = generate_spheres(robot)
-    spheres.check_against(robot)
-    return robot, spheres
+__all__ = ["print_table", "robot_and_spheres", "write_json"]
 
 
 def _jsonable(value: Any) -> Any:

@@ -137,7 +137,10 @@ def _init_worker(robot_config: str | None) -> None:
     import torch
 
     torch.set_num_threads(1)
-    from gaide.common import robot_and_spheres
+    from ompl import util as ou
+
+    ou.setLogLevel(ou.LogLevel.LOG_NONE)  # AORRTC reports every straight-edge solution
+    from planning.robot_setup import robot_and_spheres
 
     _WORKER["robot"], _WORKER["spheres"] = robot_and_spheres(robot_config)
 
