@@ -7,7 +7,8 @@ which bulges to the outside of the corner, away from the obstacle a path usually
 around. Its speed ``s_i`` is chosen among ``levels`` fractions of the largest speed the
 velocity limits allow along ``w_i`` (denser near zero, where short segments need small
 speeds): first one common fraction for all waypoints, then coordinate descent on the total
-duration (a waypoint's speed changes only its two adjacent segments, one Ruckig call each).
+duration (a waypoint's speed changes only its two adjacent segments, one Ruckig call each),
+then single joints of each velocity are scaled where that helps.
 A speed cap per waypoint holds the start and goal at rest (cap 0) and slows blends that
 collided.
 """
@@ -107,4 +108,35 @@ def choose_velocities(
                 improved = True
         if not improved:
             break
+    _refine_joints(path, planner, cap, V, T, free.tolist())
     return V, T
+
+
+# Per-joint factors tried on a waypoint velocity after the bisector search.
+_JOINT_FACTORS = (0.0, 0.5, 1.5)
+
+
+def _refine_joints(
+    path: Array, planner: SegmentPlanner, cap: Array, V: Array, T: Array, free: list[int]
+) -> None:
+    """Scale single joints of each free waypoint's velocity (0, 0.5, 1.5 x) where that
+    shortens its two segments, within the joint's limit and the waypoint's cap; two passes.
+    Updates V and T in place. (A joint that turns back at a waypoint is often best at rest
+    there, which no common direction expresses.)"""
+    vmax = planner.limits.velocity * _INSIDE
+    for _ in range(2):
+        for i in free:
+            for j in range(path.shape[1]):
+                if V[i, j] == 0.0:
+                    continue
+                for factor in _JOINT_FACTORS:
+                    v = V[i].copy()
+                    v[j] = np.clip(factor * v[j], -vmax[j], vmax[j])
+                    if np.linalg.norm(v) > cap[i]:
+                        continue
+                    a = planner.duration(path[i - 1], path[i], V[i - 1], v)
+                    if a >= T[i - 1] + T[i]:
+                        continue
+                    b = planner.duration(path[i], path[i + 1], v, V[i + 1])
+                    if a + b < T[i - 1] + T[i] - 1e-9:
+                        V[i], T[i - 1], T[i] = v, a, b

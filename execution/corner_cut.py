@@ -36,7 +36,8 @@ def cut_corners(
     length = np.linalg.norm(d, axis=1)
     u = d / length[:, None]
     turn = np.arccos(np.clip(np.einsum("ij,ij->i", u[:-1], u[1:]), -1.0, 1.0))
-    wanted = np.r_[False, turn > MIN_TURN, False]
+    # A path that turns straight back has nothing to cut (both points would coincide).
+    wanted = np.r_[False, (turn > MIN_TURN) & (turn < np.pi - MIN_TURN), False]
     done = np.zeros(K, bool)
     A = np.zeros_like(path)
     B = np.zeros_like(path)

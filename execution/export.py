@@ -50,7 +50,7 @@ def write_trajectory(
     with staged_outputs([*targets, *extra], ExecutionError) as staged:
         for tmp, data in zip(staged[len(targets) :], extra.values(), strict=True):
             tmp.write_bytes(data)
-        for target, tmp in zip(targets, staged, strict=True):
+        for target, tmp in zip(targets, staged[: len(targets)], strict=True):
             if target.suffix == ".csv":
                 tmp.write_text(trajectory_csv(traj))
             elif target.suffix == ".json":
@@ -74,7 +74,7 @@ def write_log(
     with staged_outputs([*targets, *extra], ExecutionError) as staged:
         for tmp, data in zip(staged[len(targets) :], extra.values(), strict=True):
             tmp.write_bytes(data)
-        for target, tmp in zip(targets, staged, strict=True):
+        for target, tmp in zip(targets, staged[: len(targets)], strict=True):
             if target.suffix == ".csv":
                 tmp.write_text(log_csv(joint_log))
             else:

@@ -15,9 +15,13 @@ from planning.collision import SphereCollisionChecker
 
 Array = npt.NDArray[np.float64]
 
+#: rad; consecutive waypoints closer than this are one waypoint.
+MIN_STEP = 1e-9
+
 
 def as_path(path: npt.ArrayLike, limits: JointLimits) -> Array:
-    """The path as a float (K, dof) array without repeated consecutive waypoints.
+    """The path as a float (K, dof) array without repeated consecutive waypoints (closer
+    than ``MIN_STEP``).
 
     Raises TimingError for a wrong shape, fewer than two waypoints, a non-finite value or a
     waypoint outside the joint limits (naming the waypoint, the joint and its range)."""
@@ -25,13 +29,13 @@ def as_path(path: npt.ArrayLike, limits: JointLimits) -> Array:
         arr = np.array(path, dtype=float)
     except (TypeError, ValueError) as err:
         raise TimingError(f"the path is not a numeric (K, {limits.dof}) array: {err}") from err
-    if arr.ndim != 2 or (arr.size and arr.shape[1] != limits.dof):
+    if arr.size == 0:
+        raise TimingError("the path is empty; need at least 2 waypoints (start and goal)")
+    if arr.ndim != 2 or arr.shape[1] != limits.dof:
         raise TimingError(
             f"the path has shape {arr.shape}; expected (K, {limits.dof}) for joints "
             f"{list(limits.names)}"
         )
-    if len(arr) == 0:
-        raise TimingError("the path is empty; need at least 2 waypoints (start and goal)")
     if len(arr) == 1:
         raise TimingError("the path has one waypoint; need at least 2 (start and goal)")
     bad = np.argwhere(~np.isfinite(arr))
@@ -45,10 +49,14 @@ def as_path(path: npt.ArrayLike, limits: JointLimits) -> Array:
             f"waypoint {k}: joint {limits.names[j]} = {arr[k, j]:.6f} rad is outside its limits "
             f"[{limits.lower[j]:.6f}, {limits.upper[j]:.6f}]"
         )
-    keep = np.r_[True, np.any(arr[1:] != arr[:-1], axis=1)]
-    arr = arr[keep]
-    if len(arr) < 2:
+    moves = np.linalg.norm(np.diff(arr, axis=0), axis=1) > MIN_STEP
+    if not moves.any():
         raise TimingError("every waypoint is the same configuration: there is no motion to time")
+    keep = np.r_[True, moves]
+    keep[-1] = True  # the goal itself, not a waypoint within MIN_STEP of it
+    arr = arr[keep]
+    if len(arr) > 2 and np.linalg.norm(arr[-1] - arr[-2]) <= MIN_STEP:
+        arr = np.delete(arr, -2, axis=0)
     return arr
 
 

@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import numpy.typing as npt
+from matplotlib.figure import Figure
 
 from core.atomic import write_bytes_atomic
 from core.errors import ExecutionError
@@ -21,7 +22,7 @@ from execution.trajectory import TimedTrajectory
 Array = npt.NDArray[np.float64]
 
 
-def _png(fig: plt.Figure) -> bytes:
+def _png(fig: Figure) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)

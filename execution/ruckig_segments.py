@@ -67,7 +67,7 @@ class SegmentPlanner:
         the straight line, within every joint's limits."""
         lim = self.limits
         d = np.abs(p1 - p0)
-        moving = d > 0
+        moving = d > 1e-12  # rad; a smaller step is rounding noise
         if not moving.any():
             return None
         scale = {

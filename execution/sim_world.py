@@ -207,11 +207,12 @@ class SimWorld:
 
     def contacts(self, ignored_links: tuple[str, ...] = ()) -> list[tuple[str, str, float]]:
         """(robot link, scene body label, distance m) of the robot-scene contacts of the last
-        step (touching or penetrating)."""
+        step: touching or penetrating, with a normal force (PyBullet's solver keeps
+        penetrations near 1e-5 m, so the force, not the depth, tells a contact)."""
         out = []
         for pt in pb.getContactPoints(bodyA=self.body, physicsClientId=self.client):
-            other, link, distance = pt[2], pt[3], pt[8]
-            if other not in self.scene_labels or distance > 0.0:
+            other, link, distance, force = pt[2], pt[3], pt[8], pt[9]
+            if other not in self.scene_labels or distance > 0.0 or force <= 0.0:
                 continue
             name = self.link_names.get(link, str(link))
             if name in ignored_links:

@@ -5,9 +5,13 @@ The robot starts at rest at the trajectory's first sample. At each control step 
 ``1 / rate_hz``, PyBullet's time step) the controller receives the trajectory's sample k+1
 (position target with velocity feed-forward, each joint's force limited to its URDF effort),
 the simulator steps once, and the achieved state is logged at ``t[k+1]``: the tracking error
-is ``achieved(t) - planned(t)`` at every sample. Contacts between the robot (except the links
-bolted to the mount, ``world_ignored_links``) and the scene deeper than
-``contact_tolerance_m`` are collected at every step.
+is ``achieved(t) - planned(t)`` at every sample. Gravity, the links' inertia and the effort
+limits are what keep the achieved state off the plan. Contacts between the robot (except the links
+bolted to the mount, ``world_ignored_links``) and the scene are collected at every step.
+PyBullet collides the convex hulls of the link meshes, which bulge beyond the meshes
+(millimetres in places): each contact with a scene of primitives is therefore re-checked
+with the URDF's own concave meshes (:class:`planning.mesh_reference.MeshReference`) at the
+planned configurations while it lasted, and a run whose contacts are all hull-only says so.
 """
 
 from __future__ import annotations
@@ -33,6 +37,9 @@ Array = npt.NDArray[np.float64]
 class SimStatus(enum.Enum):
     CLEAR = "clear"  # no contact between the robot and the scene
     CONTACT = "contact"  # the robot touched the scene (see ``contacts``)
+    # Only PyBullet's convex hulls of the link meshes touched the scene; the URDF's own
+    # (concave) meshes at the planned configurations clear it.
+    HULL_ONLY = "hull_only"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -42,10 +49,6 @@ class SimCfg:
     settle_s: float = 0.0  # s, extra time holding the last sample (logged too)
     gravity: bool = True
     voxel_m: float = 0.02  # m, box size when the scene is a point cloud
-    # m: a contact counts when the robot penetrates the scene deeper than this. PyBullet
-    # collides the links' convex hulls, which bulge beyond the meshes (the sphere model and
-    # the concave meshes clear by millimetres where a hull "touches" at 1e-5 m).
-    contact_tolerance_m: float = 1e-3
 
     def __post_init__(self) -> None:
         if not 0 < self.position_gain <= 1 or not 0 <= self.velocity_gain <= 1:
@@ -57,10 +60,6 @@ class SimCfg:
             raise ExecutionError(f"settle_s must be >= 0 s, got {self.settle_s}")
         if not self.voxel_m > 0:
             raise ExecutionError(f"voxel_m must be > 0 m, got {self.voxel_m}")
-        if not self.contact_tolerance_m >= 0:
-            raise ExecutionError(
-                f"contact_tolerance_m must be >= 0 m, got {self.contact_tolerance_m}"
-            )
 
 
 @dataclass(frozen=True)
@@ -73,6 +72,10 @@ class Contact:
     last_s: float
     steps: int  # control steps with the contact
     deepest_m: float  # m, most negative contact distance (penetration)
+    # True: the URDF's meshes at the planned configurations of those steps hit the scene too;
+    # False: they clear it (PyBullet's convex hull of the link is what touched); None: not
+    # checked (a cloud scene).
+    mesh_confirmed: bool | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -82,6 +85,7 @@ class Contact:
             "last_s": self.last_s,
             "steps": self.steps,
             "deepest_m": self.deepest_m,
+            "mesh_confirmed": self.mesh_confirmed,
         }
 
 
@@ -137,6 +141,7 @@ def simulate(
     targets = np.concatenate([traj.q, np.repeat(traj.q[-1:], settle, axis=0)])
     target_vel = np.concatenate([traj.qd, np.zeros((settle, robot.dof))])
     n = len(times)
+    dt = 1.0 / traj.rate_hz
     q = np.empty((n, robot.dof))
     qd = np.empty((n, robot.dof))
     found: dict[
@@ -154,23 +159,45 @@ def simulate(
         sim.reset(targets[0])
         q[0], qd[0] = sim.state()
         for k in range(1, n):
-            sim.command(targets[k], target_vel[k], cfg.position_gain, cfg.velocity_gain)
+            # PyBullet's motor sets the next velocity to velocity_gain * (qd* - qd) + qd +
+            # position_gain * (q* - q) / dt: with unit gains a step ends at q* + qd* dt, so the
+            # target is moved back by qd* dt for the step to end on the planned sample.
+            sim.command(
+                targets[k] - dt * target_vel[k],
+                target_vel[k],
+                cfg.position_gain,
+                cfg.velocity_gain,
+            )
             sim.step()
             q[k], qd[k] = sim.state()
             for link, obstacle, distance in sim.contacts(ignored):
-                if distance >= -cfg.contact_tolerance_m:
-                    continue
                 rec = found.setdefault((link, obstacle), [times[k], times[k], 0, 0.0])
                 rec[1] = times[k]
                 rec[2] += 1
                 rec[3] = min(rec[3], distance)
     error = q - targets
     contacts = tuple(
-        Contact(link=link, obstacle=obs, first_s=a, last_s=b, steps=int(s), deepest_m=d)
-        for (link, obs), (a, b, s, d) in sorted(found.items(), key=lambda kv: kv[1][0])
+        Contact(
+            link=link,
+            obstacle=obs,
+            first_s=float(a),
+            last_s=float(b),
+            steps=int(n),
+            deepest_m=float(d),
+            mesh_confirmed=None
+            if primitives is None
+            else _mesh_hit(robot, primitives, times, targets, float(a), float(b)),
+        )
+        for (link, obs), (a, b, n, d) in sorted(found.items(), key=lambda kv: kv[1][0])
     )
+    if not contacts:
+        status = SimStatus.CLEAR
+    elif all(c.mesh_confirmed is False for c in contacts):
+        status = SimStatus.HULL_ONLY
+    else:
+        status = SimStatus.CONTACT
     return SimResult(
-        status=SimStatus.CONTACT if contacts else SimStatus.CLEAR,
+        status=status,
         log=JointLog(names=robot.joint_names, t=times, q=q, qd=qd, start_ns=start_ns),
         error=error,
         rms_rad=np.sqrt(np.mean(error**2, axis=0)),
@@ -178,3 +205,15 @@ def simulate(
         contacts=contacts,
         wall_s=time.perf_counter() - t0,
     )
+
+
+def _mesh_hit(
+    robot: RobotModel, world: PrimitiveWorld, times: Array, targets: Array, t0: float, t1: float
+) -> bool:
+    """True if the URDF's concave collision meshes hit ``world`` at a planned configuration
+    between t0 and t1 (s)."""
+    from planning.mesh_reference import MeshReference
+
+    inside = np.flatnonzero((times >= t0 - 1e-9) & (times <= t1 + 1e-9))
+    with MeshReference(robot, world) as ref:
+        return any(ref.collides(targets[k]) for k in inside)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from execution.path_input import MIN_STEP
 from planning.collision import SphereCollisionChecker
 
 Array = npt.NDArray[np.float64]
@@ -51,6 +52,9 @@ def pull_string(
     while i < K - 1:
         nxt = i + 1
         cand = np.arange(min(K - 1, i + max_skip), i + 1, -1)  # farthest first
+        # A path that comes back to a waypoint keeps its loop: a zero-length shortcut would
+        # leave a waypoint with no motion to time.
+        cand = cand[np.linalg.norm(path[cand] - path[i], axis=1) > MIN_STEP]
         if cand.size:
             coarse = _coarse_valid(checker, path[i], path[cand], stride)
             for j in cand[coarse]:

@@ -1,0 +1,155 @@
+"""``gaide bench timing``: time parameterization on the harness's paths.
+
+Paths: the task-family problems of the test split (families in turn, problem i of family f
+is test seed i), planned by the harness's reference baseline, OMPL RRT-Connect, with the
+project's checker. Each path is timed in exact and in blended mode at 500 Hz, and each
+result is checked independently by re-sampling its Ruckig segments at 1 kHz:
+
+- ``limit_violations``: samples of either mode over any limit (position, velocity,
+  acceleration, jerk; tolerance 1e-6);
+- ``exact_path_dev_rad``: the largest distance of an exact-mode sample from its path;
+- ``blended_over_exact_duration``: the median ratio of the two durations over the paths
+  that keep at least 3 segments after shortcutting;
+- ``blended_collisions``: blended trajectories with an invalid motion between consecutive
+  1 kHz samples (each pair checked as an edge at the checker's resolution, straight parts
+  included);
+- ``ms_per_path``: median wall time of a blended-mode parameterization, everything included
+  (path check, shortcut, blends, collision re-check, sampling);
+- ``sim_tracking_rms_rad``: RMS tracking error of PyBullet's position controller over every
+  joint and sample of every simulated blended trajectory.
+
+Runs in one process, one path at a time, so that the times are not shared with other work
+of the benchmark.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from core.errors import PlanningError
+from execution.ruckig_timing import RuckigParameterizer
+from execution.simulate import simulate
+from execution.timing_cfg import TimingCfg, TimingMode
+from execution.verify import limit_violations, path_deviation, swept_collisions
+from planning.collision import SphereCollisionChecker
+from planning.families import FAMILIES, generate_problem, split_seed
+from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+
+Progress = Callable[..., Any]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TimingBenchCfg:
+    paths: int = 60  # problems, spread over the families in turn
+    families: tuple[str, ...] = FAMILIES
+    budget_s: float = 5.0  # s, RRT-Connect budget per problem
+    rate_hz: float = 500.0  # Hz, controller rate
+    verify_rate_hz: float = 1000.0  # Hz, independent re-sampling
+    simulate: bool = True
+
+    def __post_init__(self) -> None:
+        if self.paths < 1 or not self.families or self.budget_s <= 0:
+            raise PlanningError(
+                f"need paths >= 1, families and budget_s > 0; got {self.paths}, "
+                f"{self.families}, {self.budget_s}"
+            )
+
+
+def _median(values: list[float]) -> float | None:
+    return float(np.median(values)) if values else None
+
+
+def run_timing_benchmark(
+    robot: RobotModel,
+    spheres: SphereModel,
+    cfg: TimingBenchCfg | None = None,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
+    from planning.registry import make_planner
+
+    cfg = cfg or TimingBenchCfg()
+    t_start = time.perf_counter()
+    planner = make_planner("rrtconnect")
+    exact = RuckigParameterizer(TimingCfg(rate_hz=cfg.rate_hz, mode=TimingMode.EXACT))
+    blended = RuckigParameterizer(TimingCfg(rate_hz=cfg.rate_hz, mode=TimingMode.BLENDED))
+    jobs = [(cfg.families[i % len(cfg.families)], i // len(cfg.families)) for i in range(cfg.paths)]
+    runs: list[dict[str, Any]] = []
+    failures: list[str] = []
+    squared, samples = 0.0, 0
+    iterator = progress(jobs, desc="timing", unit="path") if progress else jobs
+    for family, index in iterator:
+        seed = split_seed("test", index)
+        problem = generate_problem(family, seed, robot, spheres)
+        checker = SphereCollisionChecker(robot, spheres, problem.world)
+        plan = planner.plan(
+            checker, problem.start, problem.goal, budget_s=cfg.budget_s,
+            rng=np.random.default_rng(seed),
+        )  # fmt: skip
+        if plan.path is None:
+            failures.append(f"{problem.name}: {plan.status.value}")
+            continue
+        te = exact.parameterize(plan.path, checker)
+        t0 = time.perf_counter()
+        tb = blended.parameterize(plan.path, checker)
+        ms = 1e3 * (time.perf_counter() - t0)
+        segments = len(te.path) - 1 if te.path is not None else 0
+        run: dict[str, Any] = {
+            "problem": problem.name,
+            "family": family,
+            "input_waypoints": len(plan.path),
+            "segments_after_shortcut": segments,
+            "exact_s": te.duration,
+            "blended_s": tb.duration,
+            "ratio": tb.duration / te.duration,
+            "ms": ms,
+            "ms_stages": {
+                k: tb.figures[k]
+                for k in ("ms_check", "ms_shortcut", "ms_timing", "ms_recheck", "ms_sample")
+            },
+            "recheck_samples": int(tb.figures["recheck_samples"]),
+            "fallbacks": int(tb.figures["fallbacks"]),
+            "limit_violations": limit_violations(te, rate_hz=cfg.verify_rate_hz)
+            + limit_violations(tb, rate_hz=cfg.verify_rate_hz),
+            "exact_path_dev_rad": path_deviation(te, rate_hz=cfg.verify_rate_hz),
+            "blended_invalid_motions": swept_collisions(tb, checker, rate_hz=cfg.verify_rate_hz),
+        }
+        if cfg.simulate:
+            sim = simulate(tb, robot, primitives=problem.world)
+            squared += float(np.sum(sim.error**2))
+            samples += sim.error.size
+            run["sim_rms_rad"] = sim.rms_all_rad
+            run["sim_max_rad"] = float(sim.max_rad.max())
+            run["sim_contacts"] = len(sim.contacts)
+        runs.append(run)
+    multi = [r for r in runs if r["segments_after_shortcut"] >= 3]
+    stages = {
+        k: _median([r["ms_stages"][k] for r in runs])
+        for k in ("ms_check", "ms_shortcut", "ms_timing", "ms_recheck", "ms_sample")
+    }
+    return {
+        "limit_violations": sum(r["limit_violations"] for r in runs),
+        "exact_path_dev_rad": max((r["exact_path_dev_rad"] for r in runs), default=None),
+        "blended_over_exact_duration": _median([r["ratio"] for r in multi]),
+        "blended_collisions": sum(r["blended_invalid_motions"] > 0 for r in runs),
+        "ms_per_path": _median([r["ms"] for r in runs]),
+        "sim_tracking_rms_rad": float(np.sqrt(squared / samples)) if samples else None,
+        "n_paths": len(runs),
+        "n_multi_segment": len(multi),
+        "planning_failures": failures,
+        "blended_over_exact_duration_all": _median([r["ratio"] for r in runs]),
+        "ms_per_path_p90": float(np.percentile([r["ms"] for r in runs], 90)) if runs else None,
+        "ms_stages_median": stages,
+        "fallbacks": sum(r["fallbacks"] for r in runs),
+        "sim_contacts": sum(r.get("sim_contacts", 0) for r in runs),
+        "rate_hz": cfg.rate_hz,
+        "verify_rate_hz": cfg.verify_rate_hz,
+        "families": list(cfg.families),
+        "runs": runs,
+        "wall_s": time.perf_counter() - t_start,
+    }
