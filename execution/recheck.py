@@ -16,7 +16,7 @@ import numpy.typing as npt
 import ruckig
 
 from execution.limits import JointLimits
-from execution.ruckig_segments import profile_extrema
+from execution.ruckig_segments import MoveTable, profile_extrema
 from planning.collision import SphereCollisionChecker
 
 Array = npt.NDArray[np.float64]
@@ -30,8 +30,9 @@ def _extrema(traj: ruckig.Trajectory, dof: int) -> tuple[Array, Array]:
 def _blend_samples(traj: ruckig.Trajectory, checker: SphereCollisionChecker, dt: float) -> Array:
     """(M, dof) configurations of ``traj`` every ``dt`` s (end included), refined where a
     sphere may move more than the checker's resolution between two of them."""
+    table = MoveTable(traj, checker.robot.dof)
     times = np.append(np.arange(0.0, traj.duration, dt), traj.duration)
-    Q = np.array([traj.at_time(t)[0] for t in times.tolist()])
+    Q = table.states(times)[0]
     steps = checker.edge_steps(Q[:-1], Q[1:])
     wide = np.flatnonzero(steps > 1)
     if wide.size == 0:
@@ -39,7 +40,7 @@ def _blend_samples(traj: ruckig.Trajectory, checker: SphereCollisionChecker, dt:
     extra = np.concatenate(
         [times[i] + (times[i + 1] - times[i]) * np.arange(1, steps[i]) / steps[i] for i in wide]
     )
-    return np.concatenate([Q, np.array([traj.at_time(t)[0] for t in extra.tolist()])])
+    return np.concatenate([Q, table.states(extra)[0]])
 
 
 def recheck(

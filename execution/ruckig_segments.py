@@ -108,27 +108,45 @@ class SegmentPlanner:
         return float("inf") if traj is None else float(traj.duration)
 
 
-class _JerkTable:
-    """Piecewise-constant jerk of one segment: phase boundaries (s) and jerks per joint."""
+class MoveTable:
+    """One Ruckig move as arrays: per joint, the phase start times (s) and the position,
+    velocity, acceleration (rad, rad/s, rad/s^2) and constant jerk (rad/s^3) each phase starts
+    with, so that states at many times are a vectorized cubic instead of one
+    ``Trajectory.at_time`` call each. Moves with a brake or accel pre/post phase (start or
+    target states beyond the limits, which this package never plans) fall back to at_time."""
 
     def __init__(self, traj: ruckig.Trajectory, dof: int) -> None:
-        self.bounds: list[Array] = []
-        self.jerks: list[Array] = []
-        for prof in traj.profiles[0][:dof]:
-            # brake (pre-trajectory, only when a start state exceeds the limits), the seven
-            # phases, then accel (post-trajectory); both are empty for states within limits.
-            durations = [*prof.brake.t, *prof.t, *prof.accel.t]
-            jerks = [*prof.brake.j, *prof.j, *prof.accel.j]
-            self.bounds.append(np.cumsum(durations))
-            self.jerks.append(np.asarray(jerks, float))
+        self.traj = traj
+        self.dof = dof
+        profs = traj.profiles[0][:dof]
+        self.exact = all(p.brake.duration == 0.0 and p.accel.duration == 0.0 for p in profs)
+        self.t0 = np.array([np.concatenate([[0.0], np.cumsum(p.t)[:-1]]) for p in profs])
+        self.p = np.array([p.p[:-1] for p in profs], float)  # (dof, 7)
+        self.v = np.array([p.v[:-1] for p in profs], float)
+        self.a = np.array([p.a[:-1] for p in profs], float)
+        self.j = np.array([p.j for p in profs], float)
 
-    def at(self, local: Array) -> Array:
-        """(N, dof) jerk (rad/s^3) at local times (N,) s."""
-        out = np.empty((local.size, len(self.bounds)))
-        for d, (bounds, jerks) in enumerate(zip(self.bounds, self.jerks, strict=True)):
-            idx = np.searchsorted(bounds, local, side="right")
-            out[:, d] = jerks[np.minimum(idx, len(jerks) - 1)]
-        return out
+    def states(self, local: Array) -> tuple[Array, Array, Array, Array]:
+        """Position, velocity, acceleration, jerk (N, dof) at local times (N,) s within the
+        move."""
+        n = local.size
+        if not self.exact:
+            rows = [self.traj.at_time(t) for t in local.tolist()]
+            q, qd, qdd = (
+                np.array([r[i] for r in rows], float).reshape(n, self.dof) for i in range(3)
+            )
+            return q, qd, qdd, np.zeros((n, self.dof))
+        idx = np.stack(
+            [np.searchsorted(self.t0[d], local, side="right") - 1 for d in range(self.dof)], axis=1
+        )
+        idx = np.clip(idx, 0, self.t0.shape[1] - 1)
+        cols = np.arange(self.dof)[None, :]
+        dt = local[:, None] - self.t0[cols, idx]
+        p, v, a, j = self.p[cols, idx], self.v[cols, idx], self.a[cols, idx], self.j[cols, idx]
+        q = p + dt * (v + dt * (a / 2.0 + dt * j / 6.0))
+        qd = v + dt * (a + dt * j / 2.0)
+        qdd = a + dt * j
+        return q, qd, qdd, j
 
 
 class SegmentChain:
@@ -143,7 +161,7 @@ class SegmentChain:
         self.durations = np.array([s.duration for s in self.segments], float)
         self.starts = np.concatenate([[0.0], np.cumsum(self.durations)[:-1]])
         self.duration = float(self.durations.sum())
-        self._jerk = [_JerkTable(s, dof) for s in self.segments]
+        self._tables = [MoveTable(s, dof) for s in self.segments]
 
     def segment_of(self, times: Array) -> npt.NDArray[np.int64]:
         """(N,) index of the segment each time (s) falls in (the last one at the end)."""
@@ -160,11 +178,11 @@ class SegmentChain:
         for k in np.unique(seg):
             rows = np.flatnonzero(seg == k)
             local = np.clip(times[rows] - self.starts[k], 0.0, self.durations[k])
-            traj = self.segments[k]
-            for r, t in zip(rows, local.tolist(), strict=True):
-                pos, vel, acc = traj.at_time(t)
-                q[r], qd[r], qdd[r] = pos, vel, acc
-            jerk[rows] = self._jerk[k].at(local)
+            q[rows], qd[rows], qdd[rows], jerk[rows] = self._tables[k].states(local)
+            if local[-1] >= self.durations[k]:  # the end of a move: its target state exactly
+                end = rows[local >= self.durations[k]]
+                pos, vel, acc = self.segments[k].at_time(self.durations[k])
+                q[end], qd[end], qdd[end] = pos, vel, acc
         past = times > self.duration
         jerk[past] = 0.0
         return q, qd, qdd, jerk

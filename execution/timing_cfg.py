@@ -41,8 +41,8 @@ class TimingCfg:
     max_acceleration: tuple[float, ...] | None = None  # rad/s^2 per joint; None: robot config
     max_jerk: tuple[float, ...] | None = None  # rad/s^3 per joint; None: robot config
     shortcut: bool = True  # shorten the path (checked straight edges) before timing it
-    blend_levels: int = 12  # waypoint speeds tried per waypoint (blended mode)
-    blend_sweeps: int = 3  # passes over the waypoints when choosing their speeds
+    blend_levels: int = 8  # waypoint speeds tried per waypoint (blended mode)
+    blend_sweeps: int = 2  # passes over the waypoints when choosing their speeds
     blend_retries: int = 2  # halvings of a colliding blend's speeds before it becomes exact
 
     def __post_init__(self) -> None:

@@ -73,3 +73,18 @@ def test_a_line_keeps_every_joints_own_limits_and_is_straight() -> None:
 
 def test_zero_motion_has_no_line() -> None:
     assert SegmentPlanner(LIMITS).plan_line(np.ones(3), np.ones(3)) is None
+
+
+def test_vectorized_states_match_ruckigs_own() -> None:
+    rng = np.random.default_rng(3)
+    planner = SegmentPlanner(LIMITS)
+    for _ in range(20):
+        p0, p1 = rng.uniform(-1, 1, (2, 3))
+        v0, v1 = rng.uniform(-0.9, 0.9, (2, 3)) * LIMITS.velocity
+        traj = planner.plan(p0, p1, v0, v1)
+        assert traj is not None
+        t = np.linspace(0.0, traj.duration, 97)
+        q, qd, qdd, _ = SegmentChain([traj], 3).evaluate(t)
+        ref = [traj.at_time(x) for x in t.tolist()]
+        for i, got in enumerate((q, qd, qdd)):
+            np.testing.assert_allclose(got, [r[i] for r in ref], atol=1e-12)
