@@ -261,23 +261,28 @@ class _Run:
         pieces.append(path[prev:])
         return np.concatenate([p for p in pieces if len(p)])
 
-    def rrtconnect(self, a: Array, b: Array) -> Array | None:
+    def rrtconnect(self, a: Array, b: Array, share: float = 1.0) -> Array | None:
+        """RRT-Connect from ``a`` to ``b`` with ``share`` of the time left; None if it found
+        nothing in that time (the run's own deadline passing is a timeout)."""
         from planning.ompl_planners import OmplPlanner
 
         left = self.deadline - time.perf_counter()
         if left <= 0.01:
             raise _Timeout
         self.stats["fallback_segments"] += 1
-        res = OmplPlanner("rrtconnect").plan(self.checker, a, b, budget_s=left, rng=self.rng)
-        if res.status is PlanStatus.TIMEOUT:
+        res = OmplPlanner("rrtconnect").plan(
+            self.checker, a, b, budget_s=max(share * left, 0.01), rng=self.rng
+        )
+        if res.path is None and time.perf_counter() >= self.deadline:
             raise _Timeout
         return res.path
 
     def fallback_gap(self, start: Array, goal: Array) -> Array | None:
-        """Hybrid: bridge the two trees' ends with RRT-Connect."""
+        """Hybrid: bridge the two trees' ends with RRT-Connect; if the ends sit where no
+        bridge is found quickly, plan the whole problem with RRT-Connect instead."""
         a, b, swapped = self._gap
         fwd, bwd = (b, a) if swapped else (a, b)
-        bridge = self.rrtconnect(fwd[-1], bwd[-1])
-        if bridge is None:
-            return None
-        return np.concatenate([np.stack(fwd), bridge[1:-1], np.stack(bwd[::-1])])
+        bridge = self.rrtconnect(fwd[-1], bwd[-1], share=0.1)
+        if bridge is not None:
+            return np.concatenate([np.stack(fwd), bridge[1:-1], np.stack(bwd[::-1])])
+        return self.rrtconnect(start, goal)
