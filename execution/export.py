@@ -26,6 +26,17 @@ TRAJECTORY_FORMATS = ".csv, .json, .bag (ROS1) or a folder name without a suffix
 LOG_FORMATS = ".csv, .bag (ROS1) or a folder name without a suffix (ROS2)"
 
 
+def check_trajectory_outputs(paths: Sequence[str | Path]) -> list[Path]:
+    """The paths as Paths, or ExecutionError naming one whose format is unknown (call it
+    before long work, so that a typo fails at once)."""
+    return _check(paths, (".csv", ".json", ".bag", ""), TRAJECTORY_FORMATS)
+
+
+def check_log_outputs(paths: Sequence[str | Path]) -> list[Path]:
+    """As :func:`check_trajectory_outputs`, for joint logs (none is fine)."""
+    return _check(paths, (".csv", ".bag", ""), LOG_FORMATS) if paths else []
+
+
 def _check(paths: Sequence[str | Path], allowed: tuple[str, ...], formats: str) -> list[Path]:
     out = [Path(p) for p in paths]
     if not out:
@@ -45,7 +56,7 @@ def write_trajectory(
 ) -> list[Path]:
     """Write ``traj`` to every path, each in the format its suffix names, and the ``extra``
     files (path -> bytes: a plot, a report) in the same all-or-nothing step."""
-    targets = _check(paths, (".csv", ".json", ".bag", ""), TRAJECTORY_FORMATS)
+    targets = check_trajectory_outputs(paths)
     extra = dict(extra or {})
     with staged_outputs([*targets, *extra], ExecutionError) as staged:
         for tmp, data in zip(staged[len(targets) :], extra.values(), strict=True):
@@ -69,7 +80,7 @@ def write_log(
 ) -> list[Path]:
     """Write ``joint_log`` to every path, each in the format its suffix names, and the
     ``extra`` files (path -> bytes) in the same all-or-nothing step."""
-    targets = _check(paths, (".csv", ".bag", ""), LOG_FORMATS) if paths else []
+    targets = check_log_outputs(paths)
     extra = dict(extra or {})
     with staged_outputs([*targets, *extra], ExecutionError) as staged:
         for tmp, data in zip(staged[len(targets) :], extra.values(), strict=True):

@@ -119,13 +119,14 @@ def _scene_for(
 
 
 def cmd_time(args: argparse.Namespace) -> int:
-    from execution.export import write_trajectory
+    from execution.export import check_trajectory_outputs, write_trajectory
     from execution.plots import trajectory_png
     from execution.ruckig_timing import RuckigParameterizer
     from execution.timing_cfg import TimingCfg, TimingMode
     from execution.verify import limit_violations
     from planning.collision import SphereCollisionChecker
 
+    check_trajectory_outputs(args.output)
     robot, spheres = robot_and_spheres(args.robot)
     raw = read_path_file(args.path)
     names = raw.get("joint_names")
@@ -206,10 +207,11 @@ def _per_joint_rows(
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     from execution.compare import compare
-    from execution.export import write_log
+    from execution.export import check_log_outputs, write_log
     from execution.plots import comparison_png
     from execution.simulate import SimCfg, simulate
 
+    check_log_outputs(args.log)
     robot, spheres = robot_and_spheres(args.robot)
     traj = _read_any_trajectory(args.trajectory)
     scene = load_scene(args.scene, robot, spheres)
