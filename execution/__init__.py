@@ -3,4 +3,16 @@ can run (CSV, JSON, ROS1/ROS2 bags), PyBullet simulation with the controller out
 and comparison of a plan with a controller log.
 
 Depends on ``core`` and ``planning`` only (robot model, collision checker, worlds).
+
+- timing: ``timing_cfg`` (TimingCfg, TimingMode), ``limits`` (JointLimits),
+  ``parameterizer`` (the TimeParameterizer protocol), ``ruckig_timing``
+  (RuckigParameterizer, time_parameterize), with ``path_input`` (checks), ``string_pull``
+  and ``corner_cut`` (shortcuts), ``blend`` (waypoint velocities), ``ruckig_segments``
+  (moves and their exact states), ``recheck`` (collision re-check of blends);
+- results and checks: ``trajectory`` (TimedTrajectory), ``verify`` (limits at 1 kHz,
+  distance from the path, swept collisions);
+- files: ``trajectory_io`` (CSV, JSON), ``ros_bags`` (JointTrajectory and JointState bags),
+  ``joint_log`` (JointLog, log CSV), ``export`` (by suffix, all or nothing), ``staging``;
+- execution: ``sim_world`` and ``simulate`` (PyBullet), ``compare`` (plan vs log), ``plots``;
+- ``bench_timing``: ``gaide bench timing``.
 """

@@ -219,3 +219,11 @@ class RuckigParameterizer:
 
 def _length(P: Array) -> float:
     return float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1)))
+
+
+def time_parameterize(
+    path: npt.ArrayLike, checker: SphereCollisionChecker, cfg: TimingCfg | None = None
+) -> TimedTrajectory:
+    """The data flow's ``execution.time_parameterize``: :class:`RuckigParameterizer` with
+    ``cfg`` (default: blended at 500 Hz) on ``path`` (K, dof) rad."""
+    return RuckigParameterizer(cfg).parameterize(path, checker)
