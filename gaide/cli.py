@@ -8,7 +8,7 @@ import sys
 
 from core.errors import GaideError
 from gaide import demo
-from gaide.commands import bench, execution, neural, perception, record, robot, scenes
+from gaide.commands import bench, execution, neural, perception, record, robot, run, scenes
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -23,6 +23,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_parser(sub)
     neural.add_parser(sub)
     execution.add_parser(sub)
+    run.add_parser(sub)
     return parser
 
 

@@ -25,22 +25,6 @@ def test_bench_collision_quick_writes_every_key(tmp_path: Path) -> None:
     assert "configs_per_s_cloud" in proc.stdout
 
 
-def test_demo_runs_on_the_shipped_bag(tmp_path: Path) -> None:
-    proc = run_cli("demo", "-o", str(tmp_path / "demo"))
-    assert proc.returncode == 0, proc.stderr
-    summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
-    assert summary["calibration_rms_px"] < 0.5 and summary["cloud_points"] > 5000
-    assert summary["recorded_state_valid"]
-    for name in (
-        "calibration.yaml",
-        "calibration_overlay.png",
-        "scene.ply",
-        "scene.png",
-        "robot_scene.png",
-    ):
-        assert (tmp_path / "demo" / name).stat().st_size > 1000, name
-
-
 def test_bad_input_prints_one_line_and_exits_with_the_stage_code(tmp_path: Path) -> None:
     proc = run_cli("robot", "show", "--q", "1,2", "-o", str(tmp_path / "x.png"))
     assert proc.returncode == 6

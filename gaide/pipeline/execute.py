@@ -1,0 +1,119 @@
+"""The last stages of a run: the trajectory exported for a controller, and its simulated
+execution (PyBullet tracks it in the perceived scene; the achieved states are logged and
+compared with the plan)."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import cKDTree
+
+from core.errors import ExecutionError
+from execution.trajectory import TimedTrajectory
+from gaide.pipeline.config import RunCfg
+from gaide.pipeline.motion import Planned
+from gaide.pipeline.runner import StageRecord, StageRunner
+from gaide.pipeline.sense import Sensed
+
+Array = npt.NDArray[np.float64]
+
+#: Export format -> output name in the run folder.
+EXPORT_NAMES = {
+    "csv": "trajectory.csv",
+    "json": "trajectory.json",
+    "bag": "trajectory.bag",
+    "ros2": "trajectory_ros2",  # a ROS2 bag is a folder
+}
+
+
+def export_stage(
+    cfg: RunCfg, traj: TimedTrajectory, runner: StageRunner, record: StageRecord
+) -> list[Path]:
+    """The trajectory in every configured format, all written or none."""
+    from execution.export import write_trajectory
+
+    targets = [runner.path(EXPORT_NAMES[f]) for f in cfg.export.formats]
+    written = write_trajectory(traj, targets, storage=cfg.export.storage)
+    record.outputs.extend(str(p) for p in written)
+    record.figures.update(formats=list(cfg.export.formats), samples=len(traj.t))
+    return written
+
+
+def near_robot(points: Array, planned_q: Array, planned: Planned, crop_m: float) -> Array:
+    """The cloud points (M, 3) within ``crop_m`` of a robot sphere at any of the
+    configurations ``planned_q`` (T, dof): the only ones the moving robot can touch, as
+    long as consecutive configurations move a sphere less than ``crop_m``."""
+    checker = planned.checker
+    centres = checker.sphere_centers(planned_q).reshape(-1, 3)
+    radii = np.tile(checker.radii, len(planned_q))
+    tree = cKDTree(points)
+    keep = np.zeros(len(points), bool)
+    for r in np.unique(np.round(radii + crop_m, 4)):
+        sel = np.isclose(np.round(radii + crop_m, 4), r)
+        for idx in tree.query_ball_point(centres[sel], r):
+            keep[idx] = True
+    return points[keep]
+
+
+def simulation_stage(
+    cfg: RunCfg,
+    traj: TimedTrajectory,
+    planned: Planned,
+    sensed: Sensed,
+    runner: StageRunner,
+    record: StageRecord,
+) -> None:
+    """Track the trajectory in PyBullet; fail past the tracking bound (or on a contact
+    when so configured). Writes the joint log, the tracking report and its plot."""
+    from execution.compare import compare
+    from execution.export import write_log
+    from execution.plots import comparison_png
+    from execution.simulate import SimCfg, SimStatus, simulate
+
+    s = cfg.simulate
+    robot = planned.checker.robot
+    # Every 20 ms of the trajectory: spheres move a few cm at most between two of them.
+    stride = max(1, round(0.02 * traj.rate_hz))
+    cloud = near_robot(sensed.cloud.points, traj.q[::stride], planned, s.crop_m)
+    result = simulate(
+        traj,
+        robot,
+        cloud=cloud if len(cloud) else None,
+        cfg=SimCfg(settle_s=s.settle_s, voxel_m=s.voxel_m),
+        start_ns=time.time_ns(),
+    )
+    rms, worst = result.rms_all_rad, float(result.max_rad.max())
+    record.figures.update(
+        status=result.status.value,
+        tracking_rms_rad=rms,
+        tracking_max_rad=worst,
+        contacts=len(result.contacts),
+        cloud_points_simulated=len(cloud),
+        sim_wall_s=round(result.wall_s, 3),
+    )
+    if rms > s.max_tracking_rms_rad:
+        raise ExecutionError(
+            f"the simulated robot tracks the trajectory with an RMS error of {rms:.3g} rad, "
+            f"above simulate.max_tracking_rms_rad = {s.max_tracking_rms_rad:g} rad; slow the "
+            "trajectory down (timing.*_scale) or raise the bound"
+        )
+    if result.contacts and s.fail_on_contact and result.status is not SimStatus.HULL_ONLY:
+        c = result.contacts[0]
+        raise ExecutionError(
+            f"the simulated robot touched the scene: {c.link} with {c.obstacle} from "
+            f"{c.first_s:.3f} s to {c.last_s:.3f} s ({len(result.contacts)} contacts)"
+        )
+    report = {"trajectory": str(runner.path("trajectory.csv")), **result.summary()}
+    extra = {
+        runner.path("simulation.json"): (json.dumps(report, indent=2) + "\n").encode(),
+        runner.path("tracking.png"): comparison_png(compare(traj, result.log)),
+    }
+    written = write_log(result.log, [runner.path("sim_log.csv")], extra=extra)
+    record.outputs.extend(str(p) for p in [*written, *extra])
+    record.figures["contact_list"] = [
+        f"{c.link} with {c.obstacle}, {c.first_s:.3f}-{c.last_s:.3f} s" for c in result.contacts
+    ]

@@ -1,0 +1,174 @@
+"""The middle stages of a run: a collision-free path in the perceived scene (start and goal
+solved and checked, the planner retried with fresh seeds), and its time parameterization."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from core.errors import PlanningError, TimingError
+from execution.parameterizer import TimeParameterizer
+from execution.trajectory import TimedTrajectory
+from gaide.pipeline import figures
+from gaide.pipeline.config import PlanningCfg, RunCfg
+from gaide.pipeline.endpoints import Resolved, reference_configuration, resolve
+from gaide.pipeline.runner import StageRecord, StageRunner
+from gaide.pipeline.sense import CameraPose, Sensed, Setup
+from planning.collision import SphereCollisionChecker
+from planning.distance_field import CloudWorld
+from planning.planner import Planner, PlanResult, PlanStatus
+
+Array = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Planned:
+    checker: SphereCollisionChecker  # the perceived scene's checker
+    start: Resolved
+    goal: Resolved
+    result: PlanResult  # the successful attempt
+    attempts: int  # attempts made (the last one succeeded)
+    planning_s: float  # s, all attempts together
+
+    @property
+    def path(self) -> Array:
+        assert self.result.path is not None  # a Planned holds a successful attempt
+        return self.result.path
+
+
+def make_run_planner(p: PlanningCfg) -> Planner:
+    """The configured planner: a registry name, or a neural one with given weights."""
+    from planning.registry import HYBRID, make_planner
+
+    if p.checkpoint is None:
+        return make_planner(p.planner)
+    from planning.neural_planner import NeuralPlanner
+
+    mode = "hybrid" if p.planner in HYBRID else "paper"
+    return NeuralPlanner(p.planner, p.checkpoint, mode=mode)
+
+
+def _endpoint(checker: SphereCollisionChecker, r: Resolved) -> Resolved:
+    """Refuse an endpoint outside the limits or in collision, naming the links."""
+    diag = checker.diagnose(r.q)
+    if not diag.valid:
+        raise PlanningError(
+            f"{r.endpoint.what} '{r.endpoint.text}' ({r.how}) is invalid in the perceived "
+            f"scene: {diag}; choose another {r.endpoint.what}"
+        )
+    return r
+
+
+def planning_stage(
+    cfg: RunCfg,
+    setup: Setup,
+    camera: CameraPose,
+    sensed: Sensed,
+    runner: StageRunner,
+    record: StageRecord,
+) -> Planned:
+    p = cfg.planning
+    world = CloudWorld(sensed.cloud.points, voxel=p.world_voxel)
+    checker = SphereCollisionChecker(setup.robot, setup.spheres, world)
+    rng = np.random.default_rng(p.seed)
+    reference = reference_configuration(setup.robot, sensed.recorded)
+    kw: dict[str, Any] = {"recorded": sensed.recorded, "rng": rng, "restarts": p.ik_restarts}
+    start = _endpoint(checker, resolve(setup.start, checker, reference=reference, **kw))
+    goal = _endpoint(checker, resolve(setup.goal, checker, reference=start.q, **kw))
+    planner = make_run_planner(p)
+    total = 0.0
+    results: list[PlanResult] = []
+    for attempt in range(p.attempts):
+        res = planner.plan(
+            checker,
+            start.q,
+            goal.q,
+            budget_s=p.budget_s,
+            rng=np.random.default_rng([p.seed, attempt]),
+        )
+        total += res.time_s
+        results.append(res)
+        if res.success or res.status in (PlanStatus.START_INVALID, PlanStatus.GOAL_INVALID):
+            break
+    res = results[-1]
+    record.figures.update(
+        planner=p.planner, attempts=len(results), planning_s=round(total, 4), budget_s=p.budget_s
+    )
+    if not res.success or res.path is None:
+        raise PlanningError(
+            f"{p.planner} found no path from start '{start.endpoint.text}' to goal "
+            f"'{goal.endpoint.text}' in {len(results)} attempt(s) of {p.budget_s:g} s: "
+            f"{res.status.value}: {res.detail}; raise planning.budget_s or planning.attempts, "
+            "or choose another goal"
+        )
+    bad = checker.first_invalid_edge(res.path)
+    if bad is not None:  # planners check their edges; this guards the pipeline's promise
+        raise PlanningError(f"{p.planner} returned a path whose edge {bad} collides")
+    planned = Planned(checker, start, goal, res, len(results), total)
+    picture = figures.path_png(
+        checker,
+        res.path,
+        sensed.cloud.points,
+        sensed.cloud.colors,
+        eye=camera.T_base_cam[:3, 3],
+        poses=cfg.report.poses,
+        title=f"{p.planner}: {len(res.path)} waypoints, {res.cost:.2f} rad",
+    )
+    plan = {
+        "planner": res.planner,
+        "status": res.status.value,
+        "scene": str(runner.path("scene.ply")),
+        "joint_names": list(setup.robot.joint_names),
+        "time_s": res.time_s,
+        "cost_rad": res.cost,
+        "start": start.q.tolist(),
+        "goal": goal.q.tolist(),
+        "path": res.path.tolist(),
+        "stats": json.loads(json.dumps(res.stats, default=str)),
+    }
+    runner.commit(
+        record,
+        {"plan.json": (json.dumps(plan, indent=2) + "\n").encode(), "path.png": picture},
+    )
+    record.figures.update(
+        start=f"{start.endpoint.text} ({start.how})",
+        goal=f"{goal.endpoint.text} ({goal.how})",
+        start_q=np.round(start.q, 5).tolist(),
+        goal_q=np.round(goal.q, 5).tolist(),
+        waypoints=len(res.path),
+        path_length_rad=round(res.cost, 4),
+        last_attempt_s=round(res.time_s, 4),
+        direct_edge_valid=bool(checker.edge_valid(start.q, goal.q)),
+        stats=json.loads(json.dumps(res.stats, default=str)),
+    )
+    return planned
+
+
+def timing_stage(
+    parameterizer: TimeParameterizer,
+    planned: Planned,
+    runner: StageRunner,
+    record: StageRecord,
+) -> TimedTrajectory:
+    """A jerk-limited trajectory along the path, its limits re-checked at 1 kHz."""
+    from execution.plots import trajectory_png
+    from execution.verify import limit_violations
+
+    traj = parameterizer.parameterize(planned.path, planned.checker)
+    violations = limit_violations(traj) if traj.chain is not None else 0
+    if violations:
+        raise TimingError(
+            f"{parameterizer.name} made a trajectory that breaks the joint limits at "
+            f"{violations} samples (1 kHz re-sampling); lower timing.*_scale"
+        )
+    runner.commit(record, {"trajectory.png": trajectory_png(traj)})
+    record.figures.update(
+        {k: v for k, v in traj.summary().items() if not k.startswith("ms_")},
+        limit_violations=violations,
+        notes=list(traj.notes),
+    )
+    return traj

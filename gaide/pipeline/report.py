@@ -1,0 +1,141 @@
+"""``report.html``: one self-contained page (inline CSS, pictures embedded as base64 data
+URIs) with the summary, every stage's picture and figures, and the settings of the run. It
+opens in any browser, from anywhere: nothing outside the file is needed.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from gaide.pipeline.runner import StageRunner, StageStatus
+from gaide.pipeline.summary import output_rows, summary_rows
+
+
+@dataclass(frozen=True)
+class Picture:
+    stage: str
+    file: str  # name in the output folder
+    caption: str
+
+
+PICTURES = (
+    Picture(
+        "calibration",
+        "calibration_overlay.png",
+        "Calibration: the detected target with its axes, reprojected with the estimate.",
+    ),
+    Picture("perception", "scene.png", "Perception: the scene cloud in the robot's base frame."),
+    Picture(
+        "planning",
+        "path.png",
+        "Planning: the path as robot poses (collision spheres, start blue to goal red) in the "
+        "cloud, and the end effector's trace.",
+    ),
+    Picture(
+        "timing",
+        "trajectory.png",
+        "Timing: position, velocity, acceleration and jerk of each joint; dashed: its limits.",
+    ),
+    Picture(
+        "simulation",
+        "tracking.png",
+        "Simulation: planned (solid) and simulated (dotted) joint positions, and the tracking "
+        "error.",
+    ),
+)
+
+CSS = """
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1200px; color: #222; }
+h1 { margin-bottom: 0.2em; } .ok { color: #1a7f37; } .bad { color: #c62828; }
+table { border-collapse: collapse; margin: 1em 0; }
+td, th { border-bottom: 1px solid #ddd; padding: 0.3em 0.8em; text-align: left;
+         vertical-align: top; }
+figure { margin: 1.5em 0; } figure img { max-width: 100%; border: 1px solid #ccc; }
+figcaption { color: #555; margin-top: 0.3em; } code, pre { background: #f5f5f5; }
+pre { padding: 0.8em; overflow-x: auto; }
+"""
+
+
+def _table(rows: list[tuple[str, str]], head: tuple[str, str] | None = None) -> str:
+    out = ["<table>"]
+    if head:
+        out.append(f"<tr><th>{html.escape(head[0])}</th><th>{html.escape(head[1])}</th></tr>")
+    out += [f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td></tr>" for a, b in rows]
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def _figure(out: Path, pic: Picture) -> str:
+    data = base64.b64encode((out / pic.file).read_bytes()).decode()
+    return (
+        f'<figure id="{html.escape(pic.stage)}"><img alt="{html.escape(pic.file)}" '
+        f'src="data:image/png;base64,{data}">'
+        f"<figcaption>{html.escape(pic.caption)} (<code>{html.escape(pic.file)}</code>)"
+        "</figcaption></figure>"
+    )
+
+
+def report_html(runner: StageRunner, config_yaml: str, title: str) -> str:
+    """The report of the run so far (a failed run's report says where it stopped)."""
+    summary = runner.summary()
+    failed = summary["failed_stage"]
+    status = (
+        f'<p class="bad">Failed at stage <b>{html.escape(failed)}</b>: '
+        f"{html.escape(summary['error'] or '')}</p>"
+        if failed
+        else '<p class="ok">Every stage succeeded.</p>'
+    )
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{html.escape(title)}</title><style>{CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+        status,
+        "<h2>Summary</h2>",
+        _table(summary_rows(runner)),
+        "<h2>Stages</h2>",
+    ]
+    for pic in PICTURES:
+        record = runner.records.get(pic.stage)
+        if record is None:
+            continue
+        parts.append(f"<h3>{html.escape(pic.stage)} ({record.status.value})</h3>")
+        if record.status is StageStatus.SUCCESS and (runner.out / pic.file).is_file():
+            parts.append(_figure(runner.out, pic))
+        elif record.message:
+            parts.append(f"<p>{html.escape(record.message)}</p>")
+        if record.figures:
+            figures = json.dumps(record.figures, indent=1, default=str)
+            parts.append(
+                f"<details><summary>figures</summary><pre>{html.escape(figures)}</pre></details>"
+            )
+    times = [
+        (name, f"{r.status.value}, {r.seconds:.2f} s")
+        for name, r in runner.records.items()
+        if name != "report"
+    ]
+    parts += [
+        "<h2>Stage times</h2>",
+        _table(times, ("stage", "status, wall time")),
+        "<h2>Files</h2>",
+        _table(output_rows(runner), ("stage", "file")),
+        "<h2>Settings</h2>",
+        f"<pre>{html.escape(config_yaml)}</pre>",
+        "</body></html>",
+    ]
+    return "\n".join(parts) + "\n"
+
+
+def report_stage(runner: StageRunner, config_yaml: str, title: str) -> None:
+    """Write ``report.html`` atomically, as the report stage's output."""
+    record = runner.records["report"]
+    # The report lists itself among the files: record it before rendering.
+    record.outputs.append(str(runner.path("report.html")))
+    page = report_html(runner, config_yaml, title).encode()
+    record.outputs.pop()
+    runner.commit(record, {"report.html": page})
+    record.figures["bytes"] = len(page)
