@@ -110,6 +110,7 @@ class PlanningCfg:
     seed: int
     ik_restarts: int
     world_voxel: float  # m
+    torch_threads: int  # CPU threads for the network while planning; 0: torch's default
 
     def __post_init__(self) -> None:
         k = self.SECTION
@@ -132,6 +133,7 @@ class PlanningCfg:
         checks.integer(self.attempts, f"{k}.attempts", lo=1, hi=100)
         checks.integer(self.seed, f"{k}.seed", lo=0)
         checks.integer(self.ik_restarts, f"{k}.ik_restarts", lo=1, hi=10_000)
+        checks.integer(self.torch_threads, f"{k}.torch_threads", lo=0, hi=256)
         _set(
             self,
             "world_voxel",

@@ -116,7 +116,7 @@ def path_png(
     centres = checker.sphere_centers(Q)  # (poses, S, 3)
     tint = plt.get_cmap("coolwarm")(np.linspace(0.0, 1.0, poses))
     fig = plt.figure(figsize=(15, 7.5))
-    grid = fig.add_gridspec(1, 2, width_ratios=(1.15, 1.0), wspace=0.15)
+    grid = fig.add_gridspec(1, 2, width_ratios=(1.15, 1.0), wspace=0.3)
     ax = fig.add_subplot(grid[0], projection="3d")
     ax.scatter(*pts.T, c=cols, s=1.2, linewidths=0, depthshade=False, alpha=0.7)
     for k in range(poses):

@@ -3,7 +3,9 @@ solved and checked, the planner retried with fresh seeds), and its time paramete
 
 from __future__ import annotations
 
+import contextlib
 import json
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +23,7 @@ from gaide.pipeline.sense import CameraPose, Sensed, Setup
 from planning.collision import SphereCollisionChecker
 from planning.distance_field import CloudWorld
 from planning.planner import Planner, PlanResult, PlanStatus
+from planning.registry import CLASSICAL
 
 Array = npt.NDArray[np.float64]
 
@@ -52,6 +55,37 @@ def make_run_planner(p: PlanningCfg) -> Planner:
     return NeuralPlanner(p.planner, p.checkpoint, mode=mode)
 
 
+@contextlib.contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """torch's intra-op threads set to ``n`` (0: unchanged) inside, restored after."""
+    if n <= 0:
+        yield
+        return
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def _attempts(
+    planner: Planner, checker: SphereCollisionChecker, start: Array, goal: Array, p: PlanningCfg
+) -> list[PlanResult]:
+    """Plan up to ``p.attempts`` times, a fresh seed each, until one succeeds."""
+    results: list[PlanResult] = []
+    for attempt in range(p.attempts):
+        res = planner.plan(
+            checker, start, goal, budget_s=p.budget_s, rng=np.random.default_rng([p.seed, attempt])
+        )
+        results.append(res)
+        if res.success or res.status in (PlanStatus.START_INVALID, PlanStatus.GOAL_INVALID):
+            break
+    return results
+
+
 def _endpoint(checker: SphereCollisionChecker, r: Resolved) -> Resolved:
     """Refuse an endpoint outside the limits or in collision, naming the links."""
     diag = checker.diagnose(r.q)
@@ -80,20 +114,9 @@ def planning_stage(
     start = _endpoint(checker, resolve(setup.start, checker, reference=reference, **kw))
     goal = _endpoint(checker, resolve(setup.goal, checker, reference=start.q, **kw))
     planner = make_run_planner(p)
-    total = 0.0
-    results: list[PlanResult] = []
-    for attempt in range(p.attempts):
-        res = planner.plan(
-            checker,
-            start.q,
-            goal.q,
-            budget_s=p.budget_s,
-            rng=np.random.default_rng([p.seed, attempt]),
-        )
-        total += res.time_s
-        results.append(res)
-        if res.success or res.status in (PlanStatus.START_INVALID, PlanStatus.GOAL_INVALID):
-            break
+    with torch_threads(p.torch_threads if p.planner not in CLASSICAL else 0):
+        results = _attempts(planner, checker, start.q, goal.q, p)
+    total = sum(r.time_s for r in results)
     res = results[-1]
     record.figures.update(
         planner=p.planner, attempts=len(results), planning_s=round(total, 4), budget_s=p.budget_s
