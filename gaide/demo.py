@@ -39,7 +39,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    args.set = [f"{k}={v}" for k, v in QUICK] * args.quick + list(args.set)
+    quick = [f"{key}={value}" for key, value in QUICK] if args.quick else []
+    args.set = quick + list(args.set)  # the user's --set wins
     args.bag = args.bag or str(SAMPLE_BAG)
     if args.target_pose is None and args.calib is None and args.T_base_cam is None:
         args.target_pose = str(SAMPLE_TARGET)

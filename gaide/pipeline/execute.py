@@ -62,6 +62,7 @@ def near_robot(points: Array, planned_q: Array, planned: Planned, crop_m: float)
 def simulation_stage(
     cfg: RunCfg,
     traj: TimedTrajectory,
+    exported: list[Path],
     planned: Planned,
     sensed: Sensed,
     runner: StageRunner,
@@ -107,7 +108,7 @@ def simulation_stage(
             f"the simulated robot touched the scene: {c.link} with {c.obstacle} from "
             f"{c.first_s:.3f} s to {c.last_s:.3f} s ({len(result.contacts)} contacts)"
         )
-    report = {"trajectory": str(runner.path("trajectory.csv")), **result.summary()}
+    report = {"trajectory": [str(p) for p in exported], **result.summary()}
     extra = {
         runner.path("simulation.json"): (json.dumps(report, indent=2) + "\n").encode(),
         runner.path("tracking.png"): comparison_png(compare(traj, result.log)),

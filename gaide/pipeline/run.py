@@ -11,12 +11,14 @@ report of what succeeded is written when reports are on.
 from __future__ import annotations
 
 import logging
+import shutil
+from pathlib import Path
 
-from core.errors import GaideError
+from core.errors import ConfigError, GaideError
 from execution.parameterizer import TimeParameterizer
 from gaide.pipeline.config import RunCfg
 from gaide.pipeline.config_io import dump_cfg
-from gaide.pipeline.execute import export_stage, simulation_stage
+from gaide.pipeline.execute import EXPORT_NAMES, export_stage, simulation_stage
 from gaide.pipeline.motion import planning_stage, timing_stage
 from gaide.pipeline.report import report_stage
 from gaide.pipeline.runner import StageHooks, StageRunner
@@ -92,9 +94,43 @@ def run_pipeline(
     return runner
 
 
+#: Every file (or folder) a run may write, besides ``summary.json``.
+OUTPUTS = (
+    "calibration.yaml",
+    "calibration_overlay.png",
+    "scene.ply",
+    "scene.png",
+    "plan.json",
+    "path.png",
+    "trajectory.png",
+    *EXPORT_NAMES.values(),
+    "sim_log.csv",
+    "simulation.json",
+    "tracking.png",
+    "report.html",
+)
+
+
+def clear_earlier_run(out: Path) -> None:
+    """Remove what an earlier run wrote into ``out`` (only the names a run writes), so that
+    after a failure the folder holds this run's files only."""
+    for name in OUTPUTS:
+        path = out / name
+        try:
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path)
+            else:
+                path.unlink(missing_ok=True)
+        except OSError as err:
+            raise ConfigError(
+                f"cannot replace {path}, written by an earlier run: {err}; choose another -o"
+            ) from err
+
+
 def _stages(cfg: RunCfg, runner: StageRunner, parameterizer: TimeParameterizer | None) -> None:
     with runner.stage("setup") as rec:
         setup = setup_stage(cfg, rec)
+        clear_earlier_run(runner.out)
     if cfg.calibration.T_base_cam is not None:
         camera = given_camera(cfg)
         runner.records["calibration"].figures.update(
@@ -111,10 +147,10 @@ def _stages(cfg: RunCfg, runner: StageRunner, parameterizer: TimeParameterizer |
     with runner.stage("timing") as rec:
         traj = timing_stage(parameterizer or ruckig_parameterizer(cfg), planned, runner, rec)
     with runner.stage("export") as rec:
-        export_stage(cfg, traj, runner, rec)
+        exported = export_stage(cfg, traj, runner, rec)
     if cfg.simulate.enabled:
         with runner.stage("simulation") as rec:
-            simulation_stage(cfg, traj, planned, sensed, runner, rec)
+            simulation_stage(cfg, traj, exported, planned, sensed, runner, rec)
     else:
         runner.skip("simulation", "simulate.enabled is false")
 

@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+import numpy as np
+
 from core.atomic import write_bytes_atomic
 from core.errors import (
     BagError,
@@ -105,8 +107,8 @@ def _jsonable(value: Any) -> Any:
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_jsonable(v) for v in value]
-    if hasattr(value, "item"):  # numpy scalars
-        return value.item()
+    if isinstance(value, np.generic):
+        return _jsonable(value.item())
     return value
 
 

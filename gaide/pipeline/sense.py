@@ -17,7 +17,7 @@ import yaml
 
 from calibration.result import CalibrationResult, load_calibration
 from calibration.targets import parse_target
-from core.errors import CalibrationError, ConfigError, ModelError
+from core.errors import BagError, CalibrationError, ConfigError, ModelError
 from core.transforms import from_xyz_quat, to_xyz_quat
 from gaide.pipeline import figures
 from gaide.pipeline.config import RunCfg
@@ -58,7 +58,7 @@ def setup_stage(cfg: RunCfg, record: StageRecord) -> Setup:
     if cfg.bag is None:
         raise ConfigError("no bag given: `gaide run BAG ...` (or bag: in the config file)")
     if not Path(cfg.bag).exists():
-        raise ConfigError(f"bag {cfg.bag} does not exist")
+        raise BagError(f"bag {cfg.bag} does not exist")
     if cfg.planning.goal is None:
         raise ConfigError(
             "no goal given: --goal NAME, --goal a,b,c,d,e,f (rad) or --goal xyz:x,y,z (m)"

@@ -161,6 +161,15 @@ def test_a_failed_stage_exits_with_its_code_and_keeps_earlier_outputs(
 ) -> None:
     extra, code, stage, text = FAILURES[case]
     out = tmp_path / "out"
+    produced = {
+        "calibration": "calibration_overlay.png",
+        "perception": "scene.ply",
+        "planning": "plan.json",
+        "timing": "trajectory.png",
+        "simulation": "sim_log.csv",
+    }[stage]
+    out.mkdir()
+    (out / produced).write_text("from an earlier run")  # must not survive this one
     source: tuple[str, ...] = ("--calib", str(run_out[0] / "calibration.yaml"))
     if case == "no-target":
         wrong = tmp_path / "wrong_target.yaml"
@@ -180,13 +189,6 @@ def test_a_failed_stage_exits_with_its_code_and_keeps_earlier_outputs(
         for path in record["outputs"]:
             assert Path(path).stat().st_size > 0, path
     assert summary["stages"][stage]["outputs"] == []
-    produced = {
-        "calibration": "calibration_overlay.png",
-        "perception": "scene.ply",
-        "planning": "plan.json",
-        "timing": "trajectory.png",
-        "simulation": "sim_log.csv",
-    }[stage]
     assert not (out / produced).exists()
     assert not _leftovers(out)
     assert "Failed at stage" in (out / "report.html").read_text()
