@@ -8,6 +8,7 @@ from __future__ import annotations
 import base64
 import html
 import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,6 +61,16 @@ pre { padding: 0.8em; overflow-x: auto; }
 """
 
 
+def _compact(text: str) -> str:
+    """JSON with lists of numbers on one line."""
+    number = r"-?\d[\d.eE+-]*"
+    return re.sub(
+        rf"\[\s*({number}(?:,\s*{number})*)\s*\]",
+        lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]",
+        text,
+    )
+
+
 def _table(rows: list[tuple[str, str]], head: tuple[str, str] | None = None) -> str:
     out = ["<table>"]
     if head:
@@ -109,7 +120,7 @@ def report_html(runner: StageRunner, config_yaml: str, title: str) -> str:
         elif record.message:
             parts.append(f"<p>{html.escape(record.message)}</p>")
         if record.figures:
-            figures = json.dumps(record.figures, indent=1, default=str)
+            figures = _compact(json.dumps(record.figures, indent=1, default=str))
             parts.append(
                 f"<details><summary>figures</summary><pre>{html.escape(figures)}</pre></details>"
             )

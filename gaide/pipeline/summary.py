@@ -37,8 +37,8 @@ def _fmt_stage(r: StageRecord) -> str | None:
         )
     if r.name == "simulation":
         return (
-            f"tracking RMS {1e3 * f['tracking_rms_rad']:.3f} mrad, max "
-            f"{1e3 * f['tracking_max_rad']:.3f} mrad; {f['contacts']} contacts ({f['status']})"
+            f"tracking RMS {1e3 * f['tracking_rms_rad']:.3g} mrad, max "
+            f"{1e3 * f['tracking_max_rad']:.3g} mrad; {f['contacts']} contacts ({f['status']})"
         )
     if r.name == "export":
         return ", ".join(f["formats"])
@@ -61,7 +61,8 @@ def summary_rows(runner: StageRunner) -> list[tuple[str, str]]:
     """(label, text) per stage with something to say, then the run's wall time."""
     rows = []
     for name, record in runner.records.items():
-        if name == "setup" and record.status is StageStatus.SUCCESS:
+        quiet = (StageStatus.SUCCESS, StageStatus.NOT_RUN) if name == "report" else ()
+        if (name == "setup" and record.status is StageStatus.SUCCESS) or record.status in quiet:
             continue
         text = _fmt_stage(record)
         if text is not None:
