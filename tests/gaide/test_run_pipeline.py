@@ -234,6 +234,16 @@ def test_settings_precedence_defaults_then_file_then_flags(
     assert load_cfg([again]) == load_cfg([cfg_file])
 
 
+def test_a_stage_reports_its_own_code_except_for_settings_bags_and_models() -> None:
+    from core.errors import BagError, ModelError, PerceptionError, PlanningError
+    from gaide.pipeline.runner import stage_error
+
+    err = stage_error(PerceptionError("the scene cloud has 3 points"), "planning")
+    assert type(err) is PlanningError and str(err) == "planning: the scene cloud has 3 points"
+    for kept in (ConfigError("x"), BagError("x"), ModelError("x")):
+        assert type(stage_error(kept, "perception")) is type(kept)
+
+
 def test_endpoint_forms(robot: RobotModel) -> None:
     assert parse_endpoint("recorded", robot, "start").kind is EndpointKind.RECORDED
     home = parse_endpoint("home", robot, "start")
