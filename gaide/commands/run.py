@@ -96,6 +96,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "run",
         help="bag -> calibration -> cloud -> GAIDE path -> Ruckig trajectory -> export, "
         "simulation, report.html",
+        epilog="Write a value that begins with a minus sign with '=': "
+        "--T-base-cam=-0.7,-0.3,0.7,0.65,-0.5,0.35,-0.45, --start=-1.2,-1.5,1.5,-1.5,-1.5,0. "
+        "Every setting: gaide/data/run.yaml; the effective ones: gaide config show.",
     )
     run.add_argument("bag", nargs="?", help="RealSense bag (ROS1 .bag, ROS2 folder or .mcap)")
     run.add_argument("-o", "--out", help="output folder (default out/run)")
