@@ -43,13 +43,20 @@ def text_table(result: HarnessResult) -> str:
 
 
 def markdown_table(result: HarnessResult) -> str:
-    summary = result.summary()
+    return summary_markdown(result.summary())
+
+
+def summary_markdown(
+    summary: dict[str, dict[str, dict[str, Any]]], planners: list[str] | None = None
+) -> str:
+    """Table I as Markdown from the JSON layout's ``results``; ``planners`` picks and orders
+    the rows (default: all, in the order they ran)."""
     families = list(summary)
-    planners = list(dict.fromkeys(p for fam in summary.values() for p in fam))
+    rows_of = planners or list(dict.fromkeys(p for fam in summary.values() for p in fam))
     head = "| planner | " + " | ".join(f"{LABELS.get(f, f)} T [s] | C | S" for f in families) + " |"
     rule = "|---|" + "---|---|---|" * len(families)
     rows = []
-    for p in planners:
+    for p in rows_of:
         cells = []
         for f in families:
             t, c, s = _cell(summary[f].get(p, {}))

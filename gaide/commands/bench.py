@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from pathlib import Path
 from typing import Any
 
 from tqdm import tqdm
 
+from core.errors import ConfigError
 from gaide.commands.execution import add_bench_parser
 from gaide.common import print_table, robot_and_spheres, write_json
 from planning.bench_collision import CollisionBenchCfg, run_collision_benchmark
@@ -59,6 +62,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     ora.add_argument("--robot", help="robot config YAML (default: UR5)")
     ora.add_argument("--json", help="write the figures to this JSON file")
     ora.set_defaults(func=cmd_oracle)
+    tab = bsub.add_parser("table", help="a Markdown table of chosen planners from a bench JSON")
+    tab.add_argument("json", help="JSON written by `gaide bench planning --json`")
+    tab.add_argument("--planners", help="comma-separated rows, in order (default: all)")
+    tab.set_defaults(func=cmd_table)
     sam = bsub.add_parser("sampler", help="forward-pass time of the neural samplers")
     sam.add_argument(
         "--models", default="gaide,gaide-v,gaide-h,mpnet,simpnet", help="comma-separated kinds"
@@ -223,6 +230,24 @@ def cmd_oracle(args: argparse.Namespace) -> int:
             args.json,
             {"runs": runs, "median_ratio": float(np.median(all_ratios)) if all_ratios else None},
         )
+    return 0
+
+
+def cmd_table(args: argparse.Namespace) -> int:
+    from planning.harness_report import summary_markdown
+
+    try:
+        results = json.loads(Path(args.json).read_text())["results"]
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise ConfigError(
+            f"{args.json}: not a JSON file written by `gaide bench planning --json` ({err})"
+        ) from err
+    rows = [p.strip() for p in args.planners.split(",")] if args.planners else None
+    known = {p for fam in results.values() for p in fam}
+    missing = [p for p in rows or [] if p not in known]
+    if missing:
+        raise ConfigError(f"{args.json} has no runs of {missing}; it has {sorted(known)}")
+    print(summary_markdown(results, rows))
     return 0
 
 

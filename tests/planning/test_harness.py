@@ -136,3 +136,18 @@ def test_cli_bench_planning_and_bad_names(tmp_path: Path) -> None:
     assert proc.returncode == 7 and "rrtconnect" in proc.stderr
     with pytest.raises(PlanningError, match="budget must be > 0"):
         HarnessCfg(budget_s=0)
+
+
+def test_bench_table_picks_rows_from_a_results_file(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    from gaide.cli import main
+
+    results = Path(__file__).resolve().parents[2] / "docs" / "bench" / "ompl_5s.json"
+    assert main(["bench", "table", str(results), "--planners", "bitstar,rrtconnect"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert [line.split(" | ")[0] for line in lines[2:]] == ["| bitstar", "| rrtconnect"]
+    assert main(["bench", "table", str(results), "--planners", "gaide"]) == 2
+    assert "has no runs of ['gaide']" in capsys.readouterr().err
+    (tmp_path / "x.json").write_text("[]")
+    assert main(["bench", "table", str(tmp_path / "x.json")]) == 2
