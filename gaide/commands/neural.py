@@ -48,6 +48,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     tr.add_argument(
         "--threads", type=int, default=0, help="CPU threads (default: all; 1 when sharing cores)"
     )
+    sizes = tr.add_argument_group("model size (default: the shipped size, see docs/results.md)")
+    for flag, help_text in (
+        ("--hidden", "token width H"),
+        ("--heads", "attention heads"),
+        ("--ff", "feed-forward width"),
+        ("--enc-layers", "encoder layers (message-passing rounds for simpnet)"),
+        ("--dec-layers", "decoder layers"),
+        ("--scene-points", "scene points the set abstraction reads"),
+        ("--scene-tokens", "scene tokens K_w"),
+    ):
+        sizes.add_argument(flag, type=int, help=help_text)
     tr.add_argument("--resume", action="store_true", help="continue from --out if it exists")
     tr.add_argument("--robot", help="robot config YAML (default: UR5)")
     tr.set_defaults(func=cmd_train)
@@ -115,7 +126,29 @@ def cmd_train(args: argparse.Namespace) -> int:
         device=args.device,
         threads=args.threads,
     )
-    trainer = Trainer(args.model, robot, args.data, cfg)
+    from planning.neural.data import read_manifest
+    from planning.neural.models import ModelCfg
+
+    given = {
+        k: getattr(args, k)
+        for k in (
+            "hidden",
+            "heads",
+            "ff",
+            "enc_layers",
+            "dec_layers",
+            "scene_points",
+            "scene_tokens",
+        )
+        if getattr(args, k) is not None
+    }
+    step = float(read_manifest(args.data)["settings"]["max_step"])
+    model_cfg = ModelCfg(**given, step=step) if given else None
+    if args.resume and model_cfg is None and Path(args.out).exists():
+        from planning.neural.checkpoint import load_checkpoint
+
+        model_cfg = load_checkpoint(args.out, robot, args.model).cfg  # resume at its sizes
+    trainer = Trainer(args.model, robot, args.data, cfg, model_cfg)
     if args.resume and Path(args.out).exists():
         trainer.resume(args.out)
     bar = tqdm(total=cfg.steps, initial=trainer.step, desc=f"train {args.model}", unit="step")

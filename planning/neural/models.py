@@ -25,6 +25,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
+from core.errors import ModelError
 from planning.neural.embodiment import Embodiment
 from planning.neural.pointnet import SetAbstraction
 
@@ -50,6 +51,26 @@ class ModelCfg:
     robot_nsample: int = 16
     step: float = 0.3  # rad: the data's maximum joint step, and the output's scale
     extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        counts = {
+            "hidden": self.hidden, "heads": self.heads, "ff": self.ff,
+            "enc_layers": self.enc_layers, "dec_layers": self.dec_layers,
+            "scene_tokens": self.scene_tokens, "scene_nsample": self.scene_nsample,
+            "robot_nsample": self.robot_nsample,
+        }  # fmt: skip
+        bad = [k for k, v in counts.items() if v < 1]
+        if bad or self.hidden % self.heads or self.scene_points < self.scene_tokens:
+            raise ModelError(
+                f"model sizes must be >= 1 (bad: {bad}), hidden a multiple of heads "
+                f"({self.hidden} % {self.heads}) and scene_points >= scene_tokens "
+                f"({self.scene_points} < {self.scene_tokens})"
+            )
+        if not (0 <= self.dropout < 1 and 0 <= self.mlp_dropout < 1) or not self.step > 0:
+            raise ModelError(
+                f"need dropouts in [0, 1) and step > 0; got {self.dropout}, "
+                f"{self.mlp_dropout}, {self.step}"
+            )
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

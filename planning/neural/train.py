@@ -150,6 +150,11 @@ class Trainer:
 
     def resume(self, path: str | Path) -> None:
         ck = load_checkpoint(path, self.robot, self.kind)
+        if ck.cfg != self.model_cfg:
+            raise ModelError(
+                f"{path} holds a model of other sizes ({ck.cfg.to_dict()}); resume with the "
+                "same sizes or train into another file"
+            )
         self.model.load_state_dict(ck.state)
         if ck.optimizer is not None:
             self.opt.load_state_dict(ck.optimizer)

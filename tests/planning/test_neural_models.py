@@ -205,3 +205,11 @@ def test_a_scene_cloud_outside_the_workspace_is_refused(
         sampler.scene(np.zeros((0, 3)))
     with pytest.raises(PerceptionError, match="base frame"):
         sampler.scene(np.full((100, 3), 40.0))
+
+
+@pytest.mark.parametrize(
+    "sizes", [{"hidden": 30, "heads": 4}, {"enc_layers": 0}, {"scene_points": 8}, {"dropout": 1.0}]
+)
+def test_model_sizes_out_of_range_are_refused(sizes: dict[str, float]) -> None:
+    with pytest.raises(ModelError, match=r"model sizes|dropouts"):
+        ModelCfg(**sizes)  # type: ignore[arg-type]
