@@ -21,6 +21,10 @@ def write_bytes_atomic(
     except OSError as err:
         raise error(f"cannot write {target}: {err}") from err
     try:
+        # mkstemp makes the file private (0600); give it the mode a plain open() would
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
