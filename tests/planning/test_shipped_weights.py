@@ -1,0 +1,50 @@
+"""The weights the repository ships: one per model, each loadable for the UR5, small, with a
+model card; GAIDE's plan task-family problems whose paths pass the harness's check."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from planning.collision import SphereCollisionChecker
+from planning.families import generate_problem, split_seed
+from planning.neural.checkpoint import card_path, file_sha256, load_checkpoint, shipped_checkpoint
+from planning.neural.models import MODEL_KINDS
+from planning.neural_planner import NeuralPlanner
+from planning.path_check import check_path
+from planning.planner import PlanStatus
+from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+
+
+@pytest.mark.parametrize("kind", MODEL_KINDS)
+def test_every_model_ships_small_weights_with_a_card(kind: str, robot: RobotModel) -> None:
+    path = shipped_checkpoint(kind)
+    assert path.is_file(), f"the repository ships {path}"
+    assert path.stat().st_size <= 20 * 2**20
+    ck = load_checkpoint(path, robot, kind)
+    card = json.loads(card_path(path).read_text())
+    assert card["sha256"] == file_sha256(path)
+    assert card["model"] == kind and card["steps"] == ck.step > 0
+    assert card["final_val_loss"] is not None and np.isfinite(card["final_val_loss"])
+
+
+@pytest.mark.parametrize("family", ["tabletop", "shelf_i"])
+def test_shipped_gaide_plans_family_problems_that_pass_the_harness_check(
+    family: str, robot: RobotModel, spheres: SphereModel
+) -> None:
+    weights = shipped_checkpoint("gaide")
+    for i in range(2):
+        p = generate_problem(family, split_seed("test", i), robot, spheres)
+        res = NeuralPlanner("gaide-hybrid", weights, mode="hybrid").plan(
+            SphereCollisionChecker(robot, spheres, p.world),
+            p.start,
+            p.goal,
+            budget_s=20.0,
+            rng=np.random.default_rng(i),
+        )
+        assert res.status is PlanStatus.SUCCESS, res.detail
+        check = check_path(res.path, p.start, p.goal, robot, spheres, p.world)
+        assert check.ok, check.detail
