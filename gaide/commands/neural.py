@@ -192,11 +192,16 @@ def _configuration(text: str | None, robot: Any, what: str) -> np.ndarray:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
+    import torch
+
     from planning.collision import SphereCollisionChecker
     from planning.distance_field import CloudWorld
     from planning.neural_planner import NeuralPlanner
     from planning.registry import HYBRID, NEURAL, make_planner
 
+    # Planning runs small batches: after Open3D has loaded a cloud, torch's default thread
+    # pool made each forward pass ~20x slower (measured); one thread is also the fastest.
+    torch.set_num_threads(1)
     robot, spheres = robot_and_spheres(args.robot)
     if args.family:
         seed = args.seed if args.seed is not None else split_seed("test", 0)

@@ -57,8 +57,10 @@ class Checkpoint:
         try:
             m.load_state_dict(self.state)
         except RuntimeError as err:
+            # torch lists every mismatched tensor on its own line: keep the first
+            first = next((ln.strip() for ln in str(err).splitlines() if ln.strip()), "")
             raise ModelError(
-                f"the checkpoint's weights do not fit a {self.kind} model: {err}"
+                f"the checkpoint's weights do not fit a {self.kind} model of its sizes ({first})"
             ) from err
         return m
 
