@@ -57,6 +57,8 @@ class NeuralSampler:
         self.model = ck.model().to(self.device)
         self.model.train()  # dropout on: the sampler's randomness (no batch norm anywhere)
         self.robot_cloud = RobotCloud(robot, ck.embodiment)
+        # MPNet has no robot-cloud encoder: its clouds need not be computed
+        self.reads_robot_cloud = getattr(self.model.backbone, "robot_sa", None) is not None
         self.step = float(ck.cfg.step)
 
     def scene(self, cloud: Array) -> torch.Tensor:
@@ -86,7 +88,8 @@ class NeuralSampler:
 
     def sample(self, scene: torch.Tensor, q: Array, goal: Array, n: int) -> Array:
         Q = np.repeat(np.asarray(q, np.float64)[None], n, axis=0)
-        robot = torch.from_numpy(self.robot_cloud(Q).astype(np.float32)).to(self.device)
+        cloud = self.robot_cloud(Q) if self.reads_robot_cloud else np.zeros((n, 0, 3))
+        robot = torch.from_numpy(cloud.astype(np.float32)).to(self.device)
         qt = torch.from_numpy(Q.astype(np.float32)).to(self.device)
         gt = torch.from_numpy(np.repeat(np.asarray(goal, np.float32)[None], n, axis=0)).to(
             self.device
