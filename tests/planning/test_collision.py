@@ -147,3 +147,20 @@ def test_primitive_world_round_trip(rng: np.random.Generator) -> None:
     back = PrimitiveWorld.from_dict(world.to_dict())
     pts = rng.uniform(-1, 1, size=(500, 3))
     np.testing.assert_allclose(back.distance(pts), world.distance(pts), atol=1e-9)
+
+
+def test_a_single_long_edge_gets_the_batched_answer(
+    robot: RobotModel, spheres: SphereModel, rng: np.random.Generator
+) -> None:
+    # edge_valid's coarse first pass must never change the answer of the full check
+    from planning.families import generate_problem, split_seed
+
+    checker = SphereCollisionChecker(
+        robot, spheres, generate_problem("shelf_i", split_seed("test", 0), robot, spheres).world
+    )
+    q0 = rng.uniform(robot.lower / 2, robot.upper / 2, (60, robot.dof))
+    q1 = rng.uniform(robot.lower / 2, robot.upper / 2, (60, robot.dof))
+    batched = checker.edges_valid(q0, q1)
+    single = np.array([checker.edge_valid(a, b) for a, b in zip(q0, q1, strict=True)])
+    assert np.array_equal(single, batched)
+    assert batched.any() and not batched.all(), "the sample needs valid and invalid edges"
