@@ -25,6 +25,10 @@ from planning.world import EmptyWorld, World
 Array = npt.NDArray[np.float64]
 Mask = npt.NDArray[np.bool_]
 
+# Edges of at least this many sub-steps get a coarse pass first, at every this many sub-steps.
+_COARSE_MIN_STEPS = 32
+_COARSE_STRIDE = 8
+
 
 class CollisionChecker(Protocol):
     """What planners need: batched validity of configurations and of straight edges."""
@@ -255,33 +259,45 @@ class SphereCollisionChecker:
         reach = np.abs(Q1 - Q0) @ self._displacement.T  # (E, S)
         return np.maximum(np.ceil(reach.max(axis=1) / self.resolution), 1).astype(np.int64)
 
-    def edges_valid(self, Q0: Array, Q1: Array) -> Mask:
+    def edges_valid(self, Q0: Array, Q1: Array, *, coarse: bool = True) -> Mask:
         """(E,) True where the straight joint-space edge Q0[e] -> Q1[e] is valid, endpoints
-        included. All samples of all edges are checked as one batch."""
+        included: every edge is sampled so that no sphere centre moves more than the
+        resolution between samples, and all samples are checked in one batch.
+
+        ``coarse``: check the long edges at every 8th of their samples (and their end) first
+        and only the edges that pass at every sample. The coarse samples are a subset of the
+        full ones, so the answer is the same; most edges a planner asks about are blocked, and
+        the coarse pass rejects those at an eighth of the cost."""
         Q0, Q1 = self._batch(Q0), self._batch(Q1)
         if Q0.shape != Q1.shape:
             raise PlanningError(f"edge endpoints differ in shape: {Q0.shape} vs {Q1.shape}")
-        if Q0.shape[0] == 0:
-            return np.zeros(0, bool)
         steps = self.edge_steps(Q0, Q1)
-        counts = steps + 1
+        ok = np.ones(len(steps), bool)
+        if coarse:
+            long = np.flatnonzero(steps >= _COARSE_MIN_STEPS)
+            if long.size:
+                ok[long] = self._sampled_valid(Q0[long], Q1[long], steps[long], _COARSE_STRIDE)
+        todo = np.flatnonzero(ok)
+        if todo.size:
+            ok[todo] = self._sampled_valid(Q0[todo], Q1[todo], steps[todo], 1)
+        return ok
+
+    def _sampled_valid(
+        self, Q0: Array, Q1: Array, steps: npt.NDArray[np.int64], stride: int
+    ) -> Mask:
+        """(E,) validity of sub-steps k = 0, stride, 2 stride, ... and k = steps of each edge
+        (sample k at fraction k / steps), as one batch."""
+        counts = steps // stride + 1 + (steps % stride != 0)
         edge_of = np.repeat(np.arange(len(steps)), counts)
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        frac = (np.arange(edge_of.size) - starts[edge_of]) / steps[edge_of]
+        k = np.minimum((np.arange(edge_of.size) - starts[edge_of]) * stride, steps[edge_of])
+        frac = k / steps[edge_of]
         samples = Q0[edge_of] + frac[:, None] * (Q1 - Q0)[edge_of]
         return np.logical_and.reduceat(self.config_valid(samples), starts)
 
     def edge_valid(self, q0: Array, q1: Array) -> bool:
-        """Is the straight edge q0 -> q1 valid? The same answer as :meth:`edges_valid`; a
-        long edge is first checked at every 8th sample, since most edges a planner asks
-        about are blocked and a coarse pass rejects them at an eighth of the cost."""
-        Q0, Q1 = self._batch(q0[None]), self._batch(q1[None])
-        steps = int(self.edge_steps(Q0, Q1)[0])
-        if steps >= 32:
-            coarse = np.linspace(0.0, 1.0, steps // 8 + 1)[:, None]
-            if not self.config_valid(Q0 + coarse * (Q1 - Q0)).all():
-                return False
-        return bool(self.edges_valid(Q0, Q1)[0])
+        """Is the straight edge q0 -> q1 valid (see :meth:`edges_valid`)?"""
+        return bool(self.edges_valid(np.asarray(q0)[None], np.asarray(q1)[None])[0])
 
     def first_invalid_edge(self, path: Array) -> int | None:
         """Index i of the first invalid edge path[i] -> path[i+1], or None if all are valid."""

@@ -149,10 +149,9 @@ def test_primitive_world_round_trip(rng: np.random.Generator) -> None:
     np.testing.assert_allclose(back.distance(pts), world.distance(pts), atol=1e-9)
 
 
-def test_a_single_long_edge_gets_the_batched_answer(
+def test_the_coarse_first_pass_never_changes_the_answer(
     robot: RobotModel, spheres: SphereModel, rng: np.random.Generator
 ) -> None:
-    # edge_valid's coarse first pass must never change the answer of the full check
     from planning.families import generate_problem, split_seed
 
     checker = SphereCollisionChecker(
@@ -160,7 +159,9 @@ def test_a_single_long_edge_gets_the_batched_answer(
     )
     q0 = rng.uniform(robot.lower / 2, robot.upper / 2, (60, robot.dof))
     q1 = rng.uniform(robot.lower / 2, robot.upper / 2, (60, robot.dof))
-    batched = checker.edges_valid(q0, q1)
+    full = checker.edges_valid(q0, q1, coarse=False)
+    assert np.array_equal(checker.edges_valid(q0, q1), full)
     single = np.array([checker.edge_valid(a, b) for a, b in zip(q0, q1, strict=True)])
-    assert np.array_equal(single, batched)
-    assert batched.any() and not batched.all(), "the sample needs valid and invalid edges"
+    assert np.array_equal(single, full)
+    assert full.any() and not full.all(), "the sample needs valid and invalid edges"
+    assert (checker.edge_steps(q0, q1) >= 32).sum() > 30, "the sample needs long edges"
