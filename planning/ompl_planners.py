@@ -222,9 +222,48 @@ class OmplPlanner:
         bad = check_endpoints(checker, start, goal)
         if bad is not None:
             return PlanResult(self.name, bad[0], None, time.perf_counter() - t0, detail=bad[1])
+        return self._plan(checker, start[None], goal[None], t0, budget_s, rng)
+
+    def plan_between(
+        self,
+        checker: SphereCollisionChecker,
+        starts: Array,
+        goals: Array,
+        *,
+        budget_s: float,
+        rng: np.random.Generator,
+    ) -> PlanResult:
+        """Plan from any of ``starts`` (m, dof) to any of ``goals`` (n, dof) rad, all of them
+        valid configurations the caller has checked: OMPL roots a start tree at every start
+        and adds the goals as goal-tree roots as its goal tree grows (RRT-Connect). The
+        path's first and last waypoints are one start and one goal, exactly; the result's
+        stats name them as ``start_index`` and ``goal_index``."""
+        t0 = time.perf_counter()
+        if not (math.isfinite(budget_s) and budget_s > 0):
+            raise PlanningError(f"budget_s must be a finite number of seconds > 0, got {budget_s}")
+        dof = checker.robot.dof
+        starts = np.asarray(starts, float)
+        goals = np.asarray(goals, float)
+        for what, a in (("starts", starts), ("goals", goals)):
+            if a.ndim != 2 or a.shape[1] != dof or not len(a) or not np.isfinite(a).all():
+                raise PlanningError(
+                    f"{what} must be a finite (n >= 1, {dof}) array of configurations, "
+                    f"got shape {a.shape}"
+                )
+        return self._plan(checker, starts, goals, t0, budget_s, rng)
+
+    def _plan(
+        self,
+        checker: SphereCollisionChecker,
+        starts: Array,
+        goals: Array,
+        t0: float,
+        budget_s: float,
+        rng: np.random.Generator,
+    ) -> PlanResult:
         seed = int(rng.integers(1, 2**31 - 1))
         with _ompl_log_level(ou.LogLevel.LOG_WARN):
-            status, path, detail, stats = self._solve(checker, start, goal, t0, budget_s, seed)
+            status, path, detail, stats = self._solve(checker, starts, goals, t0, budget_s, seed)
         elapsed = time.perf_counter() - t0
         log.debug(
             "%s: %s in %.3f s (budget %.3f s), %d motion checks",
@@ -239,8 +278,8 @@ class OmplPlanner:
     def _solve(
         self,
         checker: SphereCollisionChecker,
-        start: Array,
-        goal: Array,
+        starts: Array,
+        goals: Array,
         t0: float,
         budget_s: float,
         seed: int,
@@ -267,7 +306,15 @@ class OmplPlanner:
         si.setup()
 
         pdef = ob.ProblemDefinition(si)
-        pdef.setStartAndGoalStates(_state(space, start), _state(space, goal))
+        for q in starts:
+            pdef.addStartState(_state(space, q))
+        if len(goals) == 1:
+            pdef.setGoalState(_state(space, goals[0]))
+        else:
+            goal_states = ob.GoalStates(si)
+            for q in goals:
+                goal_states.addState(_state(space, q))
+            pdef.setGoal(goal_states)
         objective = ob.PathLengthOptimizationObjective(si)
         # No path is shorter than 0 rad: the objective is never satisfied, so anytime
         # planners do not stop before the budget.
@@ -336,14 +383,15 @@ class OmplPlanner:
         elif (
             self.name == "aorrtc"
             and ompl_status.getStatus() == ob.PlannerStatus.INVALID_GOAL
-            and checker.edge_valid(start, goal)
+            and len(starts) == len(goals) == 1
+            and checker.edge_valid(starts[0], goals[0])
         ):
             # OMPL's AORRTC (2.0) shortcuts its solution to the straight start-goal edge when
             # that edge is free, then rejects that 2-state path as "zero-length" and reports
             # an invalid goal (the ends passed check_endpoints, so the goal is valid). The
             # path it had is the straight edge, checked here again.
-            path = np.stack([start, goal])
-            stats["raw_cost"] = float(np.linalg.norm(goal - start))
+            path = np.stack([starts[0], goals[0]])
+            stats["raw_cost"] = float(np.linalg.norm(goals[0] - starts[0]))
             stats["straight_edge_workaround"] = True
         elif pdef.hasApproximateSolution():
             stats["approximate_gap"] = float(pdef.getSolutionDifference())  # rad from goal
@@ -371,24 +419,28 @@ class OmplPlanner:
                 f"OMPL {self.name} stopped early: {stats['ompl_status']}",
                 stats,
             )
-        return self._finish(checker, path, start, goal, stats)
+        return self._finish(checker, path, starts, goals, stats)
 
     def _finish(
         self,
         checker: SphereCollisionChecker,
         path: Array,
-        start: Array,
-        goal: Array,
+        starts: Array,
+        goals: Array,
         stats: dict[str, Any],
     ) -> tuple[PlanStatus, Array | None, str, dict[str, Any]]:
-        """The solution with its ends set to the exact inputs, checked once more (and
-        repaired where it can be)."""
-        gap = max(float(np.linalg.norm(path[0] - start)), float(np.linalg.norm(path[-1] - goal)))
+        """The solution with its ends set to the exact inputs it joins, checked once more
+        (and repaired where it can be)."""
+        d_start = np.linalg.norm(starts - path[0], axis=1)
+        d_goal = np.linalg.norm(goals - path[-1], axis=1)
+        i, j = int(np.argmin(d_start)), int(np.argmin(d_goal))
+        gap = max(float(d_start[i]), float(d_goal[j]))
         if len(path) == 1:  # start == goal: OMPL's path is the one state
             path = np.concatenate([path, path])
         if gap > _ENDPOINT_TOL:
             return PlanStatus.FAILED, None, f"OMPL's path ends {gap:.3g} rad off", stats
-        path[0], path[-1] = start, goal
+        path[0], path[-1] = starts[i], goals[j]
+        stats["start_index"], stats["goal_index"] = i, j
         path, repaired, bad = _repair(checker, path)
         stats["repaired_edges"] = repaired
         if bad is not None:

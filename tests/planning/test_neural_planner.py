@@ -94,6 +94,20 @@ def test_hybrid_mode_bridges_what_the_sampler_cannot_with_rrt_connect(
     assert check_path(res.path, box.start, box.goal, robot, spheres, box.world).ok
 
 
+def test_hybrid_fallback_roots_rrt_connect_at_the_neural_trees(
+    robot: RobotModel, spheres: SphereModel, box: Any
+) -> None:
+    checker = _checker(robot, spheres, box)
+    creep = Straight(step=0.02, noise=0.0)  # valid steps that cannot meet in 6 steps
+    res = NeuralPlanner("creep-hybrid", creep, mode="hybrid", rollouts=1, max_steps=6).plan(
+        checker, box.start, box.goal, budget_s=10.0, rng=np.random.default_rng(0)
+    )
+    assert res.status is PlanStatus.SUCCESS, res.detail
+    # Three steps from each end: the start and goal plus three nodes per tree are roots.
+    assert res.stats["fallback_roots"] == [4, 4]
+    assert check_path(res.path, box.start, box.goal, robot, spheres, box.world).ok
+
+
 def test_a_straight_sampler_solves_a_box_problem_and_every_edge_passes_the_harness(
     robot: RobotModel, spheres: SphereModel, box: Any
 ) -> None:

@@ -255,3 +255,32 @@ def test_a_free_straight_edge_is_solved_by_every_planner(
     assert res.status is PlanStatus.SUCCESS, (res.status, res.detail)
     assert res.cost == pytest.approx(0.5, abs=1e-6) or name in ("rrtconnect", "rrtstar")
     assert edges_all_valid(wall, res.path)
+
+
+def test_plan_between_joins_one_of_the_starts_to_one_of_the_goals(
+    wall: SphereCollisionChecker,
+) -> None:
+    start, goal = wall_problem()
+    wrist = np.array([0.0, 0.0, 0.0, 0.0, 0.3, 0.0])
+    hand = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.3])
+    starts = np.stack([start, start + hand])
+    goals = np.stack([goal, goal + wrist, goal - hand])
+    assert wall.config_valid(np.concatenate([starts, goals])).all()
+    res = OmplPlanner("rrtconnect").plan_between(
+        wall, starts, goals, budget_s=CONNECT_BUDGET_S, rng=np.random.default_rng(SEED)
+    )
+    assert res.status is PlanStatus.SUCCESS and res.path is not None
+    i, j = res.stats["start_index"], res.stats["goal_index"]
+    np.testing.assert_array_equal(res.path[0], starts[i])
+    np.testing.assert_array_equal(res.path[-1], goals[j])
+    assert edges_all_valid(wall, res.path)
+
+
+def test_plan_between_refuses_malformed_roots(wall: SphereCollisionChecker) -> None:
+    start, goal = wall_problem()
+    planner = OmplPlanner("rrtconnect")
+    rng = np.random.default_rng(SEED)
+    with pytest.raises(PlanningError, match="starts must be"):
+        planner.plan_between(wall, np.zeros((0, 6)), goal[None], budget_s=1.0, rng=rng)
+    with pytest.raises(PlanningError, match="goals must be"):
+        planner.plan_between(wall, start[None], goal[None, :5], budget_s=1.0, rng=rng)
