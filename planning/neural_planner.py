@@ -52,7 +52,8 @@ class NeuralPlanner:
     """``sampler`` proposes steps (or, given as a checkpoint path, the checkpoint's model,
     loaded for the checker's robot on first use); ``mode`` 'paper' or 'hybrid';
     ``rollouts`` proposals per forward pass; ``max_steps`` of the bidirectional loop per
-    (re)plan and ``replans`` rounds of replanning failing segments.
+    (re)plan and ``replans`` rounds of replanning failing segments; ``restart_s`` the first
+    slice of the hybrid fallback's restarted RRT-Connect (see :meth:`_Run.connect`).
 
     Defaults: 80 steps and 3 rounds in paper mode; 16 steps and 1 round in hybrid mode. The
     network solves most problems it solves at all within 16 steps (docs/results.md), and
@@ -67,6 +68,7 @@ class NeuralPlanner:
         rollouts: int = 8,
         max_steps: int | None = None,
         replans: int | None = None,
+        restart_s: float = 0.3,
     ) -> None:
         if mode not in MODES:
             raise PlanningError(f"mode must be one of {MODES}, got {mode!r}")
@@ -74,13 +76,15 @@ class NeuralPlanner:
             max_steps = 80 if mode == "paper" else 16
         if replans is None:
             replans = 3 if mode == "paper" else 1
-        if rollouts < 1 or max_steps < 1 or replans < 0:
+        if rollouts < 1 or max_steps < 1 or replans < 0 or not restart_s > 0:
             raise PlanningError(
-                f"need rollouts >= 1, max_steps >= 1, replans >= 0; got {rollouts}, {max_steps}, {replans}"
+                "need rollouts >= 1, max_steps >= 1, replans >= 0, restart_s > 0; got "
+                f"{rollouts}, {max_steps}, {replans}, {restart_s}"
             )
         self.name, self.mode = name, mode
         self._sampler = sampler
         self.rollouts, self.max_steps, self.replans = rollouts, max_steps, replans
+        self.restart_s = restart_s
 
     def plan(
         self,
@@ -142,6 +146,7 @@ class _Run:
             "forward_passes": 0,
             "neural_replans": 0,
             "fallback_segments": 0,
+            "fallback_restarts": 0,
             "mode": planner.mode,
         }
 
@@ -159,12 +164,12 @@ class _Run:
                         None,
                         (f"the trees did not meet in {self.p.max_steps} steps"),
                     )
-                path = self.fallback_gap(start, goal)
+                path = self.fallback_gap()
                 if path is None:
                     return (
                         PlanStatus.FAILED,
                         None,
-                        "the trees did not meet and RRT-Connect found no bridge in time",
+                        "the trees did not meet and RRT-Connect stopped without a bridge",
                     )
             path = self.contract(path)
             for _ in range(self.p.replans):
@@ -269,47 +274,50 @@ class _Run:
         pieces.append(path[prev:])
         return np.concatenate([p for p in pieces if len(p)])
 
-    def rrtconnect(self, a: Array, b: Array, share: float = 1.0) -> Array | None:
-        """RRT-Connect from ``a`` to ``b`` with ``share`` of the time left; None if it found
-        nothing in that time (the run's own deadline passing is a timeout)."""
+    def rrtconnect(self, a: Array, b: Array) -> Array | None:
+        """A segment from ``a`` to ``b`` by RRT-Connect (see :meth:`connect`)."""
+        res = self.connect(a[None], b[None])
+        return None if res is None else res[0]
+
+    def connect(self, starts: Array, goals: Array) -> tuple[Array, int, int] | None:
+        """RRT-Connect from any of ``starts`` to any of ``goals`` with the time left: the
+        path and the indices of the start and goal it joins; None if OMPL gave up early.
+
+        RRT-Connect's time to solve a shelf problem is heavy-tailed (one seed 0.2 s, another
+        over 5 s on the same problem), so it runs in slices of growing length
+        (``restart_s``, then 1.5x each time), each a fresh pair of trees with a new seed."""
         from planning.ompl_planners import OmplPlanner
 
-        left = self.deadline - time.perf_counter()
-        if left <= 0.01:
-            raise _Timeout
         self.stats["fallback_segments"] += 1
-        res = OmplPlanner("rrtconnect").plan(
-            self.checker, a, b, budget_s=max(share * left, 0.01), rng=self.rng
-        )
-        if res.path is None and time.perf_counter() >= self.deadline:
-            raise _Timeout
-        return res.path
-
-    def fallback_gap(self, start: Array, goal: Array) -> Array | None:
-        """Hybrid: RRT-Connect with the time left, rooted at every node of the two neural
-        trees that the tree's root reaches by valid edges (the start tree's nodes as starts,
-        the goal tree's as goals, deepest first), so it bridges the trees where they came
-        closest and, failing that, is plain RRT-Connect from ``start`` to ``goal``."""
-        from planning.ompl_planners import OmplPlanner
-
-        a, b, swapped = self._gap
-        fwd, bwd = (b, a) if swapped else (a, b)
-        fwd, bwd = self._reached(fwd), self._reached(bwd)
-        left = self.deadline - time.perf_counter()
-        if left <= 0.01:
-            raise _Timeout
-        self.stats["fallback_segments"] += 1
-        self.stats["fallback_roots"] = [len(fwd), len(bwd)]
-        res = OmplPlanner("rrtconnect").plan_between(
-            self.checker, fwd, bwd[::-1], budget_s=left, rng=self.rng
-        )
-        if res.path is None:
-            if time.perf_counter() >= self.deadline:
+        slice_s = self.p.restart_s
+        while True:
+            left = self.deadline - time.perf_counter()
+            if left <= 0.01:
                 raise _Timeout
+            res = OmplPlanner("rrtconnect").plan_between(
+                self.checker, starts, goals, budget_s=min(slice_s, left), rng=self.rng
+            )
+            if res.path is not None:
+                return res.path, int(res.stats["start_index"]), int(res.stats["goal_index"])
+            if res.status is not PlanStatus.TIMEOUT:
+                return None
+            self.stats["fallback_restarts"] += 1
+            slice_s *= 1.5
+
+    def fallback_gap(self) -> Array | None:
+        """Hybrid: RRT-Connect rooted at every node of the two neural trees that the tree's
+        root reaches by valid edges (the start tree's nodes as starts, the goal tree's as
+        goals, deepest first), so it bridges the trees where they came closest and, failing
+        that, joins the start and the goal themselves."""
+        a, b, swapped = self._gap
+        fwd, bwd = (self._reached(t) for t in ((b, a) if swapped else (a, b)))
+        self.stats["fallback_roots"] = [len(fwd), len(bwd)]
+        res = self.connect(fwd, bwd[::-1])
+        if res is None:
             return None
-        i = int(res.stats["start_index"])
-        j = len(bwd) - 1 - int(res.stats["goal_index"])
-        return np.concatenate([fwd[: i + 1], res.path[1:-1], bwd[j::-1]])
+        bridge, i, k = res
+        j = len(bwd) - 1 - k
+        return np.concatenate([fwd[: i + 1], bridge[1:-1], bwd[j::-1]])
 
     def _reached(self, tree: list[Array]) -> Array:
         """The tree's nodes up to its first invalid edge (the root always)."""

@@ -149,6 +149,25 @@ def test_bad_endpoints_are_a_status_and_bad_settings_an_error(
         NeuralPlanner("x", Straight(), mode="fast")
     with pytest.raises(PlanningError, match="budget_s"):
         planner.plan(checker, box.start, box.goal, budget_s=0.0, rng=rng)
+    with pytest.raises(PlanningError, match="restart_s > 0"):
+        NeuralPlanner("x", Straight(), mode="hybrid", restart_s=0.0)
+
+
+def test_the_fallback_restarts_rrt_connect_in_growing_slices(
+    robot: RobotModel, spheres: SphereModel, box: Any
+) -> None:
+    from planning.neural_planner import _Run
+
+    checker = _checker(robot, spheres, box)
+    planner = NeuralPlanner("stuck-hybrid", Stuck(), mode="hybrid", restart_s=1e-4)
+    run = _Run(planner, Stuck(), checker, float("inf"), np.random.default_rng(0))
+    # A 0.1 ms slice is too short for OMPL's set-up: the first slices all time out.
+    res = run.connect(box.start[None], box.goal[None])
+    assert res is not None
+    path, i, j = res
+    assert (i, j) == (0, 0) and run.stats["fallback_restarts"] >= 1
+    assert np.array_equal(path[0], box.start) and np.array_equal(path[-1], box.goal)
+    assert checker.edges_valid(path[:-1], path[1:]).all()
 
 
 def test_a_tiny_budget_times_out_saying_what_was_tried(
