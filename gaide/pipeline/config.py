@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from core.errors import ConfigError
+from execution.timing_cfg import TimingCfg, TimingMode
 from gaide.pipeline import checks
 from planning.registry import CLASSICAL, HYBRID, NEURAL
 
@@ -143,7 +144,8 @@ class PlanningCfg:
 
 @dataclass(frozen=True, kw_only=True)
 class TimingSection:
-    """Time parameterization (:class:`execution.timing_cfg.TimingCfg` is built from it)."""
+    """Time parameterization, checked as configuration keys (:meth:`timing_cfg` gives the
+    execution layer's :class:`~execution.timing_cfg.TimingCfg`)."""
 
     SECTION: ClassVar[str] = "timing"
     mode: str  # blended | exact
@@ -175,6 +177,12 @@ class TimingSection:
             value = checks.vector(getattr(self, name), f"{k}.{name}", positive=True, unit=unit)
             _set(self, name, value)
         checks.flag(self.shortcut, f"{k}.shortcut")
+
+    def timing_cfg(self) -> TimingCfg:
+        """The execution layer's settings, field for field (the blend search at its
+        defaults)."""
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        return TimingCfg(**{**fields, "mode": TimingMode.parse(self.mode)})
 
 
 @dataclass(frozen=True, kw_only=True)

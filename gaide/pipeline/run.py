@@ -46,22 +46,8 @@ STAGES = (
 def ruckig_parameterizer(cfg: RunCfg) -> TimeParameterizer:
     """The configured time parameterization (Ruckig)."""
     from execution.ruckig_timing import RuckigParameterizer
-    from execution.timing_cfg import TimingCfg, TimingMode
 
-    t = cfg.timing
-    return RuckigParameterizer(
-        TimingCfg(
-            rate_hz=t.rate_hz,
-            mode=TimingMode.parse(t.mode),
-            velocity_scale=t.velocity_scale,
-            acceleration_scale=t.acceleration_scale,
-            jerk_scale=t.jerk_scale,
-            max_velocity=t.max_velocity,
-            max_acceleration=t.max_acceleration,
-            max_jerk=t.max_jerk,
-            shortcut=t.shortcut,
-        )
-    )
+    return RuckigParameterizer(cfg.timing.timing_cfg())
 
 
 def run_pipeline(

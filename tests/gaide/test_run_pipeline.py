@@ -232,6 +232,9 @@ def test_settings_precedence_defaults_then_file_then_flags(
     assert main(["config", "show", "--config", str(cfg_file)]) == 0
     again.write_text(capsys.readouterr().out)
     assert load_cfg([again]) == load_cfg([cfg_file])
+    # the timing section reaches the execution layer field for field
+    timing = load_cfg([cfg_file], [("timing.mode", "exact")]).timing.timing_cfg()
+    assert timing.rate_hz == 250.0 and timing.mode.value == "exact"
 
 
 def test_a_stage_reports_its_own_code_except_for_settings_bags_and_models() -> None:
