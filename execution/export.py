@@ -12,7 +12,7 @@ is created.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from core.errors import ExecutionError
@@ -56,19 +56,16 @@ def write_trajectory(
 ) -> list[Path]:
     """Write ``traj`` to every path, each in the format its suffix names, and the ``extra``
     files (path -> bytes: a plot, a report) in the same all-or-nothing step."""
-    targets = check_trajectory_outputs(paths)
-    extra = dict(extra or {})
-    with staged_outputs([*targets, *extra], ExecutionError) as staged:
-        for tmp, data in zip(staged[len(targets) :], extra.values(), strict=True):
-            tmp.write_bytes(data)
-        for target, tmp in zip(targets, staged[: len(targets)], strict=True):
-            if target.suffix == ".csv":
-                tmp.write_text(trajectory_csv(traj))
-            elif target.suffix == ".json":
-                tmp.write_text(trajectory_json(traj))
-            else:
-                write_trajectory_bag(traj, tmp, ros_version=ros_version_of(target), storage=storage)
-    return targets
+
+    def write(target: Path, tmp: Path) -> None:
+        if target.suffix == ".csv":
+            tmp.write_text(trajectory_csv(traj))
+        elif target.suffix == ".json":
+            tmp.write_text(trajectory_json(traj))
+        else:
+            write_trajectory_bag(traj, tmp, ros_version=ros_version_of(target), storage=storage)
+
+    return _write_all(check_trajectory_outputs(paths), extra, write)
 
 
 def write_log(
@@ -80,18 +77,31 @@ def write_log(
 ) -> list[Path]:
     """Write ``joint_log`` to every path, each in the format its suffix names, and the
     ``extra`` files (path -> bytes) in the same all-or-nothing step."""
-    targets = check_log_outputs(paths)
+
+    def write(target: Path, tmp: Path) -> None:
+        if target.suffix == ".csv":
+            tmp.write_text(log_csv(joint_log))
+        else:
+            write_joint_state_bag(
+                joint_log, tmp, ros_version=ros_version_of(target), storage=storage
+            )
+
+    return _write_all(check_log_outputs(paths), extra, write)
+
+
+def _write_all(
+    targets: list[Path],
+    extra: Mapping[Path, bytes] | None,
+    write: Callable[[Path, Path], None],
+) -> list[Path]:
+    """``write(target, staged_file)`` for every target and the ``extra`` bytes, staged and
+    renamed into place together."""
     extra = dict(extra or {})
     with staged_outputs([*targets, *extra], ExecutionError) as staged:
         for tmp, data in zip(staged[len(targets) :], extra.values(), strict=True):
             tmp.write_bytes(data)
         for target, tmp in zip(targets, staged[: len(targets)], strict=True):
-            if target.suffix == ".csv":
-                tmp.write_text(log_csv(joint_log))
-            else:
-                write_joint_state_bag(
-                    joint_log, tmp, ros_version=ros_version_of(target), storage=storage
-                )
+            write(target, tmp)
     return targets
 
 
