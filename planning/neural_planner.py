@@ -10,9 +10,11 @@ fallback.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -48,12 +50,31 @@ def scene_cloud_of(checker: SphereCollisionChecker, seed: int = 0) -> Array:
     )
 
 
+@contextlib.contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """torch's intra-op threads set to ``n`` (0: unchanged) inside, restored after."""
+    if n <= 0:
+        yield
+        return
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
 class NeuralPlanner:
     """``sampler`` proposes steps (or, given as a checkpoint path, the checkpoint's model,
     loaded for the checker's robot on first use); ``mode`` 'paper' or 'hybrid';
     ``rollouts`` proposals per forward pass; ``max_steps`` of the bidirectional loop per
     (re)plan and ``replans`` rounds of replanning failing segments; ``restart_s`` the first
-    slice of the hybrid fallback's restarted RRT-Connect (see :meth:`_Run.connect`).
+    slice of the hybrid fallback's restarted RRT-Connect (see :meth:`_Run.connect`);
+    ``threads`` torch's intra-op threads while planning (0: torch's setting, untouched). One
+    is the default: a step's batch is small, and after Open3D or OpenCV have run in the
+    process, torch's default thread pool made each forward pass about 20x slower (measured).
 
     Defaults: 80 steps and 3 rounds in paper mode; 8 steps and 1 round in hybrid mode, where
     RRT-Connect rooted at the neural trees is the better use of the time after that: on Box
@@ -70,6 +91,7 @@ class NeuralPlanner:
         max_steps: int | None = None,
         replans: int | None = None,
         restart_s: float = 0.5,
+        threads: int = 1,
     ) -> None:
         if mode not in MODES:
             raise PlanningError(f"mode must be one of {MODES}, got {mode!r}")
@@ -77,15 +99,15 @@ class NeuralPlanner:
             max_steps = 80 if mode == "paper" else 8
         if replans is None:
             replans = 3 if mode == "paper" else 1
-        if rollouts < 1 or max_steps < 1 or replans < 0 or not restart_s > 0:
+        if rollouts < 1 or max_steps < 1 or replans < 0 or not restart_s > 0 or threads < 0:
             raise PlanningError(
-                "need rollouts >= 1, max_steps >= 1, replans >= 0, restart_s > 0; got "
-                f"{rollouts}, {max_steps}, {replans}, {restart_s}"
+                "need rollouts >= 1, max_steps >= 1, replans >= 0, restart_s > 0, threads >= 0; "
+                f"got {rollouts}, {max_steps}, {replans}, {restart_s}, {threads}"
             )
         self.name, self.mode = name, mode
         self._sampler = sampler
         self.rollouts, self.max_steps, self.replans = rollouts, max_steps, replans
-        self.restart_s = restart_s
+        self.restart_s, self.threads = restart_s, threads
 
     def plan(
         self,
@@ -111,7 +133,7 @@ class NeuralPlanner:
             cloud = scene_cloud_of(checker, int(rng.integers(2**31)))
         import torch
 
-        with torch.random.fork_rng(devices=[]):
+        with torch_threads(self.threads), torch.random.fork_rng(devices=[]):
             torch.manual_seed(int(rng.integers(2**31)))
             run.scene = run.sampler.scene(cloud)
             status, path, detail = run.solve(start, goal)

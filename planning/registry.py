@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from pathlib import Path
 
-from core.errors import PlanningError
+from core.errors import ConfigError, PlanningError
 from planning.planner import Planner
 
 CLASSICAL = ("rrtconnect", "rrtstar", "informed_rrtstar", "bitstar", "aorrtc")
@@ -15,33 +15,34 @@ NEURAL = ("gaide", "gaide-v", "gaide-h", "mpnet", "simpnet")
 HYBRID = ("gaide-hybrid", "gaide-v-hybrid", "gaide-h-hybrid")
 
 
-def _factories() -> dict[str, Callable[[], Planner]]:
+def planner_names() -> list[str]:
+    return [*CLASSICAL, *NEURAL, *HYBRID]
+
+
+def make_planner(name: str, *, checkpoint: str | Path | None = None, threads: int = 1) -> Planner:
+    """The planner called ``name``. Neural planners (paper mode, or hybrid for the
+    ``-hybrid`` names) load ``checkpoint``, by default the shipped weights of their model,
+    and run torch on ``threads`` intra-op threads (0: torch's setting, untouched)."""
+    if name not in planner_names():
+        raise PlanningError(f"unknown planner '{name}'; valid: {planner_names()}")
+    if name in CLASSICAL:
+        if checkpoint is not None:
+            raise ConfigError(
+                f"a checkpoint is for the neural planners {[*NEURAL, *HYBRID]}, not {name}"
+            )
+        from planning.ompl_planners import OmplPlanner
+
+        return OmplPlanner(name)
     from planning.neural.checkpoint import shipped_checkpoint
     from planning.neural_planner import NeuralPlanner
-    from planning.ompl_planners import OmplPlanner
 
-    out: dict[str, Callable[[], Planner]] = {}
-    for name in CLASSICAL:
-        out[name] = lambda name=name: OmplPlanner(name)  # type: ignore[misc]
-    for name in NEURAL:
-        out[name] = lambda name=name: NeuralPlanner(name, shipped_checkpoint(name))  # type: ignore[misc]
-    for name in HYBRID:
-        kind = name.removesuffix("-hybrid")
-        out[name] = lambda name=name, kind=kind: NeuralPlanner(  # type: ignore[misc]
-            name, shipped_checkpoint(kind), mode="hybrid"
-        )
-    return out
-
-
-def planner_names() -> list[str]:
-    return list(_factories())
-
-
-def make_planner(name: str) -> Planner:
-    factories = _factories()
-    if name not in factories:
-        raise PlanningError(f"unknown planner '{name}'; valid: {list(factories)}")
-    return factories[name]()
+    kind = name.removesuffix("-hybrid")
+    return NeuralPlanner(
+        name,
+        shipped_checkpoint(kind) if checkpoint is None else checkpoint,
+        mode="hybrid" if name in HYBRID else "paper",
+        threads=threads,
+    )
 
 
 def parse_planners(text: str) -> list[str]:

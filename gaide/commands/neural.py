@@ -192,16 +192,10 @@ def _configuration(text: str | None, robot: Any, what: str) -> np.ndarray:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    import torch
-
     from planning.collision import SphereCollisionChecker
     from planning.distance_field import CloudWorld
-    from planning.neural_planner import NeuralPlanner
-    from planning.registry import HYBRID, NEURAL, make_planner
+    from planning.registry import make_planner
 
-    # Planning runs small batches: after Open3D has loaded a cloud, torch's default thread
-    # pool made each forward pass ~20x slower (measured); one thread is also the fastest.
-    torch.set_num_threads(1)
     robot, spheres = robot_and_spheres(args.robot)
     if args.family:
         seed = args.seed if args.seed is not None else split_seed("test", 0)
@@ -218,18 +212,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         start = _configuration(args.start, robot, "start")
         goal = _configuration(args.goal, robot, "goal")
         source = args.scene
-    if args.checkpoint and args.planner not in NEURAL + HYBRID:
-        raise ConfigError(
-            f"--checkpoint is for neural planners {list(NEURAL + HYBRID)}, not {args.planner}"
-        )
-    if args.checkpoint:
-        planner: Any = NeuralPlanner(
-            args.planner,
-            args.checkpoint,
-            mode="hybrid" if args.planner in HYBRID else "paper",
-        )
-    else:
-        planner = make_planner(args.planner)
+    planner = make_planner(args.planner, checkpoint=args.checkpoint)
     checker = SphereCollisionChecker(robot, spheres, world)
     rng = np.random.default_rng(0 if args.seed is None else args.seed)
     result = planner.plan(checker, start, goal, budget_s=args.budget, rng=rng)

@@ -3,9 +3,7 @@ solved and checked, the planner retried with fresh seeds), and its time paramete
 
 from __future__ import annotations
 
-import contextlib
 import json
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,7 +21,6 @@ from gaide.pipeline.sense import CameraPose, Sensed, Setup
 from planning.collision import SphereCollisionChecker
 from planning.distance_field import CloudWorld
 from planning.planner import Planner, PlanResult, PlanStatus
-from planning.registry import CLASSICAL
 
 Array = npt.NDArray[np.float64]
 
@@ -44,31 +41,11 @@ class Planned:
 
 
 def make_run_planner(p: PlanningCfg) -> Planner:
-    """The configured planner: a registry name, or a neural one with given weights."""
-    from planning.registry import HYBRID, make_planner
+    """The configured planner: a registry name, a neural one with the given weights, on
+    the configured torch threads."""
+    from planning.registry import make_planner
 
-    if p.checkpoint is None:
-        return make_planner(p.planner)
-    from planning.neural_planner import NeuralPlanner
-
-    mode = "hybrid" if p.planner in HYBRID else "paper"
-    return NeuralPlanner(p.planner, p.checkpoint, mode=mode)
-
-
-@contextlib.contextmanager
-def torch_threads(n: int) -> Iterator[None]:
-    """torch's intra-op threads set to ``n`` (0: unchanged) inside, restored after."""
-    if n <= 0:
-        yield
-        return
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
+    return make_planner(p.planner, checkpoint=p.checkpoint, threads=p.torch_threads)
 
 
 def _attempts(
@@ -114,8 +91,7 @@ def planning_stage(
     start = _endpoint(checker, resolve(setup.start, checker, reference=reference, **kw))
     goal = _endpoint(checker, resolve(setup.goal, checker, reference=start.q, **kw))
     planner = make_run_planner(p)
-    with torch_threads(p.torch_threads if p.planner not in CLASSICAL else 0):
-        results = _attempts(planner, checker, start.q, goal.q, p)
+    results = _attempts(planner, checker, start.q, goal.q, p)
     total = sum(r.time_s for r in results)
     res = results[-1]
     record.figures.update(

@@ -136,3 +136,10 @@ def test_gaide_plan_writes_a_checked_path_or_one_line_with_the_status(
     )
     assert bad.returncode == 7 and "start_invalid" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not bad_out.exists()
+
+    misuse = run_cli(
+        *("plan", "--family", "box", "--planner", "rrtconnect", "--checkpoint", str(ckpt)),
+        *("-o", str(bad_out)),
+    )
+    assert misuse.returncode == 2 and "for the neural planners" in misuse.stderr
+    assert not bad_out.exists()
