@@ -46,10 +46,21 @@ class HarnessCfg:
     mesh_check: bool = False  # also check returned paths against PyBullet's meshes
     problem_file: Path | None = None  # bring-your-own problems instead of the families
     robot_config: Path | None = None
+    # Neural planners load WEIGHTS/<model>.pt (gaide-hybrid: gaide.pt) instead of the
+    # shipped weights.
+    weights: Path | None = None
 
     def __post_init__(self) -> None:
         if self.problems < 1 or self.workers < 1:
             raise PlanningError("need at least one problem per family and one worker")
+        if self.weights is not None:
+            kinds = {p.removesuffix("-hybrid") for p in self.planners if p not in CLASSICAL}
+            missing = sorted(k for k in kinds if not (self.weights / f"{k}.pt").is_file())
+            if missing:
+                raise PlanningError(
+                    f"--weights {self.weights} has no {', '.join(m + '.pt' for m in missing)} "
+                    "for the neural planners asked for"
+                )
         if self.budget_s is not None and self.budget_s <= 0:
             raise PlanningError(f"budget must be > 0 s, got {self.budget_s}")
         valid = planner_names()
@@ -77,10 +88,12 @@ class RunRecord:
 # -- worker side -------------------------------------------------------------------------
 
 _ROBOT: tuple[RobotModel, SphereModel] | None = None
+_WEIGHTS: Path | None = None  # see HarnessCfg.weights
 
 
-def _init_worker(robot_config: str | None) -> None:
-    global _ROBOT
+def _init_worker(robot_config: str | None, weights: str | None = None) -> None:
+    global _ROBOT, _WEIGHTS
+    _WEIGHTS = None if weights is None else Path(weights)
     import torch
 
     from planning.sphere_model import SphereModel
@@ -118,7 +131,10 @@ def _run(task: tuple[dict[str, Any] | tuple[str, int], str, float, bool]) -> Run
 
     checker = SphereCollisionChecker(robot, spheres, problem.world)
     rng = np.random.default_rng([problem.seed, zlib.crc32(planner_name.encode())])
-    result = make_planner(planner_name).plan(
+    checkpoint = None
+    if _WEIGHTS is not None and planner_name not in CLASSICAL:
+        checkpoint = _WEIGHTS / f"{planner_name.removesuffix('-hybrid')}.pt"
+    result = make_planner(planner_name, checkpoint=checkpoint).plan(
         checker, problem.start, problem.goal, budget_s=budget, rng=rng
     )
     t1 = time.perf_counter()
@@ -245,7 +261,8 @@ def run_harness(
     t0 = time.perf_counter()
     ctx = mp.get_context("fork")
     config = None if cfg.robot_config is None else str(cfg.robot_config)
-    with ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(config,)) as pool:
+    weights = None if cfg.weights is None else str(cfg.weights)
+    with ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(config, weights)) as pool:
 
         def run_all(tasks: list[tuple[Any, str, float, bool]]) -> None:
             # longest first keeps both cores busy to the end

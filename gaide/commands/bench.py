@@ -50,6 +50,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     )
     pla.add_argument("--robot", help="robot config YAML (default: UR5)")
     pla.add_argument(
+        "--weights",
+        help="folder of checkpoints MODEL.pt (from `gaide train`) the neural planners load "
+        "instead of the shipped weights",
+    )
+    pla.add_argument(
         "--json", help="write results to this JSON file (a .md table and a .png plot beside it)"
     )
     pla.set_defaults(func=cmd_planning)
@@ -168,6 +173,7 @@ def cmd_planning(args: argparse.Namespace) -> int:
         mesh_check=args.mesh_check,
         problem_file=Path(args.problem_file) if args.problem_file else None,
         robot_config=Path(args.robot) if args.robot else None,
+        weights=Path(args.weights) if args.weights else None,
         **({"workers": args.workers} if args.workers else {}),
     )
     result = run_harness(cfg, progress=tqdm)

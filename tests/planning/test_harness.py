@@ -151,3 +151,16 @@ def test_bench_table_picks_rows_from_a_results_file(
     assert "has no runs of ['gaide']" in capsys.readouterr().err
     (tmp_path / "x.json").write_text("[]")
     assert main(["bench", "table", str(tmp_path / "x.json")]) == 2
+
+
+def test_bench_planning_loads_the_given_weights_folder(tmp_path: Path) -> None:
+    weights = tmp_path / "weights"
+    weights.mkdir()
+    (weights / "mpnet.pt").write_text("not a checkpoint")
+    args = ("bench", "planning", "--families", "tabletop", "--problems", "1", "--budget", "1")
+    # the folder's file is what the planner loads, not the shipped weights
+    proc = run_cli(*args, "--planners", "mpnet", "--weights", str(weights))
+    assert proc.returncode == 10 and "mpnet.pt is corrupt" in proc.stderr
+    assert sum("error" in line for line in proc.stderr.splitlines()) == 1
+    proc = run_cli(*args, "--planners", "rrtconnect,gaide-hybrid", "--weights", str(weights))
+    assert proc.returncode == 7 and "has no gaide.pt" in proc.stderr
