@@ -168,6 +168,14 @@ def test_the_fallback_restarts_rrt_connect_in_growing_slices(
     assert (i, j) == (0, 0) and run.stats["fallback_restarts"] >= 1
     assert np.array_equal(path[0], box.start) and np.array_equal(path[-1], box.goal)
     assert checker.edges_valid(path[:-1], path[1:]).all()
+    # restarts root the first start and the last goal alone, whatever the first slice had
+    hand = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.1])
+    starts = np.stack([box.start, box.start + hand])
+    goals = np.stack([box.goal + hand, box.goal])
+    assert checker.config_valid(np.concatenate([starts, goals])).all()
+    res = run.connect(starts, goals)
+    assert res is not None and res[1:] == (0, 1)
+    assert np.array_equal(res[0][0], box.start) and np.array_equal(res[0][-1], box.goal)
 
 
 def test_a_tiny_budget_times_out_saying_what_was_tried(
