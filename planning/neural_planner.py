@@ -74,7 +74,8 @@ class NeuralPlanner:
     slice of the hybrid fallback's restarted RRT-Connect (see :meth:`_Run.connect`);
     ``threads`` torch's intra-op threads while planning (0: torch's setting, untouched). One
     is the default: a step's batch is small, and after Open3D or OpenCV have run in the
-    process, torch's default thread pool made each forward pass about 20x slower (measured).
+    process, torch's default thread pool made each forward pass about 20x slower (measured);
+    ``kind``: the model a checkpoint must hold (None: any).
 
     Defaults: 80 steps and 3 rounds in paper mode; 8 steps and 1 round in hybrid mode, where
     RRT-Connect rooted at the neural trees is the better use of the time after that: on Box
@@ -92,6 +93,7 @@ class NeuralPlanner:
         replans: int | None = None,
         restart_s: float = 0.5,
         threads: int = 1,
+        kind: str | None = None,
     ) -> None:
         if mode not in MODES:
             raise PlanningError(f"mode must be one of {MODES}, got {mode!r}")
@@ -108,6 +110,7 @@ class NeuralPlanner:
         self._sampler = sampler
         self.rollouts, self.max_steps, self.replans = rollouts, max_steps, replans
         self.restart_s, self.threads = restart_s, threads
+        self.kind = kind
 
     def plan(
         self,
@@ -142,7 +145,7 @@ class NeuralPlanner:
 
     def sampler_for(self, robot: RobotModel) -> Sampler:
         if isinstance(self._sampler, (str, Path)):
-            return cached_sampler(self._sampler, robot)
+            return cached_sampler(self._sampler, robot, self.kind)
         return self._sampler
 
 

@@ -22,7 +22,8 @@ def planner_names() -> list[str]:
 def make_planner(name: str, *, checkpoint: str | Path | None = None, threads: int = 1) -> Planner:
     """The planner called ``name``. Neural planners (paper mode, or hybrid for the
     ``-hybrid`` names) load ``checkpoint``, by default the shipped weights of their model,
-    and run torch on ``threads`` intra-op threads (0: torch's setting, untouched)."""
+    which it must hold (``gaide-hybrid`` a GAIDE checkpoint, ``mpnet`` an MPNet one), and run
+    torch on ``threads`` intra-op threads (0: torch's setting, untouched)."""
     if name not in planner_names():
         raise PlanningError(f"unknown planner '{name}'; valid: {planner_names()}")
     if name in CLASSICAL:
@@ -42,6 +43,7 @@ def make_planner(name: str, *, checkpoint: str | Path | None = None, threads: in
         shipped_checkpoint(kind) if checkpoint is None else checkpoint,
         mode="hybrid" if name in HYBRID else "paper",
         threads=threads,
+        kind=kind,
     )
 
 

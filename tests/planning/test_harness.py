@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ from planning import harness
 from planning.families import generate_problem, split_seed
 from planning.harness import HarnessCfg, run_harness
 from planning.harness_report import markdown_table, text_table
+from planning.neural.checkpoint import shipped_checkpoint
 from planning.path_check import check_path
 from planning.planner import PlanResult, PlanStatus
 from planning.problem import save_problems
@@ -164,3 +166,7 @@ def test_bench_planning_loads_the_given_weights_folder(tmp_path: Path) -> None:
     assert sum("error" in line for line in proc.stderr.splitlines()) == 1
     proc = run_cli(*args, "--planners", "rrtconnect,gaide-hybrid", "--weights", str(weights))
     assert proc.returncode == 7 and "has no gaide.pt" in proc.stderr
+    # a file named for one model that holds another is refused, not run under a wrong label
+    shutil.copy(shipped_checkpoint("gaide"), weights / "mpnet.pt")
+    proc = run_cli(*args, "--planners", "mpnet", "--weights", str(weights))
+    assert proc.returncode == 10 and "holds a gaide model, not mpnet" in proc.stderr

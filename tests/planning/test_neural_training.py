@@ -114,7 +114,8 @@ def test_gaide_plan_writes_a_checked_path_or_one_line_with_the_status(
 ) -> None:
     ckpt = tmp_path / "tiny.pt"
     trained = run_cli(
-        *("train", "--model", "mpnet", "--data", str(data_dir), "--out", str(ckpt)),
+        *("train", "--model", "gaide", "--data", str(data_dir), "--out", str(ckpt)),
+        *("--hidden", "16", "--heads", "2", "--ff", "32", "--enc-layers", "2"),
         *("--steps", "4", "--batch", "8", "--device", "cpu", "--threads", "1"),
     )
     assert trained.returncode == 0, trained.stderr
@@ -142,4 +143,12 @@ def test_gaide_plan_writes_a_checked_path_or_one_line_with_the_status(
         *("-o", str(bad_out)),
     )
     assert misuse.returncode == 2 and "for the neural planners" in misuse.stderr
+    assert not bad_out.exists()
+    other = run_cli(
+        *("plan", "--family", "box", "--planner", "mpnet", "--checkpoint", str(ckpt)),
+        *("-o", str(bad_out)),
+    )
+    assert other.returncode == ModelError.exit_code and "holds a gaide model, not mpnet" in (
+        other.stderr
+    )
     assert not bad_out.exists()
