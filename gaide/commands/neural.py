@@ -73,7 +73,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     pl.add_argument(
         "--planner", default="gaide-hybrid", help="planner name (see `gaide bench planning`)"
     )
-    pl.add_argument("--checkpoint", help="weights for a neural planner (default: the shipped ones)")
+    pl.add_argument(
+        "--checkpoint",
+        help="weights for a neural planner, of its model (default: the shipped ones)",
+    )
     pl.add_argument("--budget", type=float, default=5.0, help="seconds")
     pl.add_argument("--robot", help="robot config YAML (default: UR5)")
     pl.add_argument("-o", "--output", required=True, help="path JSON")
