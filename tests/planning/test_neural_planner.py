@@ -186,3 +186,32 @@ def test_a_tiny_budget_times_out_saying_what_was_tried(
         checker, box.start, box.goal, budget_s=0.05, rng=np.random.default_rng(0)
     )
     assert res.status is PlanStatus.TIMEOUT and "forward passes" in res.detail
+
+
+def test_the_planner_runs_torch_on_its_own_threads_and_restores_them(
+    robot: RobotModel, spheres: SphereModel, box: Any
+) -> None:
+    import torch
+
+    class Recording(Stuck):
+        def __init__(self) -> None:
+            super().__init__()
+            self.seen: list[int] = []
+
+        def sample(self, scene: Any, q: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
+            self.seen.append(torch.get_num_threads())
+            return super().sample(scene, q, goal, n)
+
+    checker = _checker(robot, spheres, box)
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        sampler = Recording()
+        NeuralPlanner("rec", sampler, max_steps=2, threads=1).plan(
+            checker, box.start, box.goal, budget_s=5.0, rng=np.random.default_rng(0)
+        )
+        assert sampler.seen == [1, 1] and torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+    with pytest.raises(PlanningError, match="threads >= 0"):
+        NeuralPlanner("x", Straight(), threads=-1)
