@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -24,7 +23,7 @@ from core.errors import PlanningError
 from planning.collision import SphereCollisionChecker
 from planning.distance_field import CloudWorld
 from planning.neural.sampler import Sampler, cached_sampler
-from planning.planner import Array, PlanResult, PlanStatus, check_endpoints
+from planning.planner import Array, PlanResult, PlanStatus, check_budget, check_endpoints
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.scene_views import surface_cloud
@@ -123,8 +122,7 @@ class NeuralPlanner:
         cloud: Array | None = None,
     ) -> PlanResult:
         t0 = time.perf_counter()
-        if not (math.isfinite(budget_s) and budget_s > 0):
-            raise PlanningError(f"budget_s must be a finite number of seconds > 0, got {budget_s}")
+        check_budget(budget_s)
         robot = checker.robot
         start = robot.as_configuration(start, "start")
         goal = robot.as_configuration(goal, "goal")

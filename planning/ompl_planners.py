@@ -39,7 +39,7 @@ from ompl import util as ou
 
 from core.errors import PlanningError
 from planning.collision import SphereCollisionChecker
-from planning.planner import Array, PlanResult, PlanStatus, check_endpoints
+from planning.planner import Array, PlanResult, PlanStatus, check_budget, check_endpoints
 
 log = logging.getLogger(__name__)
 
@@ -214,8 +214,7 @@ class OmplPlanner:
         """Plan from ``start`` to ``goal`` (dof,) rad within ``budget_s`` seconds of wall time
         (set-up included). OMPL's seed is drawn from ``rng``."""
         t0 = time.perf_counter()
-        if not (math.isfinite(budget_s) and budget_s > 0):
-            raise PlanningError(f"budget_s must be a finite number of seconds > 0, got {budget_s}")
+        check_budget(budget_s)
         robot = checker.robot
         start = robot.as_configuration(start, "start")
         goal = robot.as_configuration(goal, "goal")
@@ -239,8 +238,7 @@ class OmplPlanner:
         path's first and last waypoints are one start and one goal, exactly; the result's
         stats name them as ``start_index`` and ``goal_index``."""
         t0 = time.perf_counter()
-        if not (math.isfinite(budget_s) and budget_s > 0):
-            raise PlanningError(f"budget_s must be a finite number of seconds > 0, got {budget_s}")
+        check_budget(budget_s)
         dof = checker.robot.dof
         starts = np.asarray(starts, float)
         goals = np.asarray(goals, float)

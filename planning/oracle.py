@@ -20,7 +20,14 @@ import numpy as np
 from core.errors import PlanningError
 from planning.collision import SphereCollisionChecker
 from planning.ompl_planners import ANYTIME_PLANNERS, OmplPlanner
-from planning.planner import Array, PlanResult, PlanStatus, check_endpoints, path_length
+from planning.planner import (
+    Array,
+    PlanResult,
+    PlanStatus,
+    check_budget,
+    check_endpoints,
+    path_length,
+)
 from planning.shortcut import resample, shortcut
 
 log = logging.getLogger(__name__)
@@ -71,8 +78,7 @@ def oracle_path(
     (rad), every planner run's outcome, the winner, and the cost before resampling.
     """
     t0 = time.perf_counter()
-    if not (math.isfinite(budget_s) and budget_s > 0):
-        raise PlanningError(f"budget_s must be a finite number of seconds > 0, got {budget_s}")
+    check_budget(budget_s)
     if connect_runs < 0:
         raise PlanningError(f"connect_runs must be >= 0, got {connect_runs}")
     start = checker.robot.as_configuration(start, "start")

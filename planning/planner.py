@@ -9,12 +9,14 @@ outside limits) are statuses, not exceptions: a benchmark counts them.
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
+from core.errors import PlanningError
 from planning.collision import SphereCollisionChecker
 
 Array = npt.NDArray[np.float64]
@@ -51,6 +53,12 @@ def path_length(path: Array) -> float:
     """Sum of the Euclidean joint-space lengths of the path's edges (rad)."""
     p = np.asarray(path, float)
     return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))) if len(p) > 1 else 0.0
+
+
+def check_budget(budget_s: float) -> None:
+    """PlanningError unless ``budget_s`` is a finite number of seconds > 0."""
+    if not (math.isfinite(budget_s) and budget_s > 0):
+        raise PlanningError(f"budget_s must be a finite number of seconds > 0, got {budget_s}")
 
 
 def check_endpoints(
