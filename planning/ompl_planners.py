@@ -353,11 +353,13 @@ class OmplPlanner:
             "seed": seed,
             "ompl_status": ompl_status.asString(),
             "solve_s": solved_at - t0,
+            "solve_budget_s": solve_deadline - t0,  # the search's share of the budget
         }
         exact = (
             ompl_status.getStatus() == ob.PlannerStatus.EXACT_SOLUTION and pdef.hasExactSolution()
         )
         path: Array | None = None
+        raw_path: Array | None = None  # OMPL's own solution, before our simplify pass
         if exact:
             solution = og.PathGeometric(pdef.getSolutionPath())
             stats["raw_cost"] = float(solution.length())
@@ -377,6 +379,8 @@ class OmplPlanner:
                 if solution.length() > raw.length():
                     solution = raw
                     stats["simplify_kept_raw"] = True
+                else:
+                    raw_path = _path_array(raw, dof)
             path = _path_array(solution, dof)
         elif (
             self.name == "aorrtc"
@@ -417,7 +421,15 @@ class OmplPlanner:
                 f"OMPL {self.name} stopped early: {stats['ompl_status']}",
                 stats,
             )
-        return self._finish(checker, path, starts, goals, stats)
+        status, final, detail, stats = self._finish(checker, path, starts, goals, stats)
+        if final is None and raw_path is not None:
+            # The simplifier inserts waypoints on edges it checked and does not check the
+            # pieces again, so its path can hold an edge that repair cannot fix. The search's
+            # own solution, every edge of it checked by our motion validator, still stands.
+            stats["simplify_rejected"] = detail
+            stats["simplify_kept_raw"] = True
+            status, final, detail, stats = self._finish(checker, raw_path, starts, goals, stats)
+        return status, final, detail, stats
 
     def _finish(
         self,
@@ -428,7 +440,7 @@ class OmplPlanner:
         stats: dict[str, Any],
     ) -> tuple[PlanStatus, Array | None, str, dict[str, Any]]:
         """The solution with its ends set to the exact inputs it joins, checked once more
-        (and repaired where it can be)."""
+        (and repaired where it can be). ``path`` is modified in place."""
         d_start = np.linalg.norm(starts - path[0], axis=1)
         d_goal = np.linalg.norm(goals - path[-1], axis=1)
         i, j = int(np.argmin(d_start)), int(np.argmin(d_goal))
