@@ -40,7 +40,7 @@ from execution.ruckig_timing import RuckigParameterizer
 from execution.simulate import simulate
 from execution.timing_cfg import TimingCfg, TimingMode
 from execution.verify import limit_violations, path_deviation, swept_collisions
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
 from planning.families import FAMILIES, generate_problem, split_seed
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
@@ -91,7 +91,7 @@ def run_timing_benchmark(
     for family, index in iterator:
         seed = split_seed("test", index)
         problem = generate_problem(family, seed, robot, spheres)
-        checker = SphereCollisionChecker(robot, spheres, problem.world)
+        checker = make_checker(robot, spheres, problem.world)
         plan = planner.plan(
             checker, problem.start, problem.goal, budget_s=cfg.budget_s,
             rng=np.random.default_rng(seed),

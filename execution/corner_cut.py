@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 
 Array = npt.NDArray[np.float64]
 
@@ -24,7 +24,7 @@ MIN_TURN = np.radians(2.0)
 
 
 def cut_corners(
-    path: Array, checker: SphereCollisionChecker, fractions: tuple[float, ...] = FRACTIONS
+    path: Array, checker: CollisionChecker, fractions: tuple[float, ...] = FRACTIONS
 ) -> Array:
     """The path (K, dof) rad with its corners cut where a checked chord allows."""
     K = len(path)

@@ -7,7 +7,7 @@ from typing import Protocol
 import numpy.typing as npt
 
 from execution.trajectory import TimedTrajectory
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 
 
 class TimeParameterizer(Protocol):
@@ -20,6 +20,4 @@ class TimeParameterizer(Protocol):
 
     name: str
 
-    def parameterize(
-        self, path: npt.ArrayLike, checker: SphereCollisionChecker
-    ) -> TimedTrajectory: ...
+    def parameterize(self, path: npt.ArrayLike, checker: CollisionChecker) -> TimedTrajectory: ...

@@ -11,7 +11,7 @@ import numpy.typing as npt
 
 from core.errors import TimingError
 from execution.limits import JointLimits
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 
 Array = npt.NDArray[np.float64]
 
@@ -60,7 +60,7 @@ def as_path(path: npt.ArrayLike, limits: JointLimits) -> Array:
     return arr
 
 
-def check_path_valid(path: Array, checker: SphereCollisionChecker) -> None:
+def check_path_valid(path: Array, checker: CollisionChecker) -> None:
     """Refuse a path with an invalid waypoint or edge (TimingError naming the edge and, from
     the checker's diagnosis, the joints or links at fault)."""
     ok = checker.config_valid(path)
@@ -76,7 +76,7 @@ def check_path_valid(path: Array, checker: SphereCollisionChecker) -> None:
     )
 
 
-def _edge_diagnosis(q0: Array, q1: Array, checker: SphereCollisionChecker) -> str:
+def _edge_diagnosis(q0: Array, q1: Array, checker: CollisionChecker) -> str:
     """The checker's diagnosis at the first invalid sample of the edge q0 -> q1."""
     steps = int(checker.edge_steps(q0[None], q1[None])[0])
     frac = np.linspace(0.0, 1.0, steps + 1)

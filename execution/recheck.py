@@ -17,7 +17,7 @@ import ruckig
 
 from execution.limits import JointLimits
 from execution.ruckig_segments import MoveTable, profile_extrema
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 
 Array = npt.NDArray[np.float64]
 
@@ -27,7 +27,7 @@ def _extrema(traj: ruckig.Trajectory, dof: int) -> tuple[Array, Array]:
     return np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
 
 
-def _blend_samples(traj: ruckig.Trajectory, checker: SphereCollisionChecker, dt: float) -> Array:
+def _blend_samples(traj: ruckig.Trajectory, checker: CollisionChecker, dt: float) -> Array:
     """(M, dof) configurations of ``traj`` every ``dt`` s (end included), refined where a
     sphere may move more than the checker's resolution between two of them."""
     table = MoveTable(traj, checker.robot.dof)
@@ -45,7 +45,7 @@ def _blend_samples(traj: ruckig.Trajectory, checker: SphereCollisionChecker, dt:
 
 def recheck(
     todo: dict[int, ruckig.Trajectory],
-    checker: SphereCollisionChecker,
+    checker: CollisionChecker,
     limits: JointLimits,
     dt: float,
 ) -> tuple[dict[int, str], int]:

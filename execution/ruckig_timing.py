@@ -41,7 +41,7 @@ from execution.ruckig_segments import SegmentChain, SegmentPlanner
 from execution.string_pull import pull_string
 from execution.timing_cfg import TimingCfg, TimingMode
 from execution.trajectory import SegmentInfo, TimedTrajectory, TimingStatus
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 
 Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
@@ -59,7 +59,7 @@ class RuckigParameterizer:
     def __init__(self, cfg: TimingCfg | None = None) -> None:
         self.cfg = cfg or TimingCfg()
 
-    def limits(self, checker: SphereCollisionChecker) -> JointLimits:
+    def limits(self, checker: CollisionChecker) -> JointLimits:
         cfg = self.cfg
         return limits_for(
             checker.robot,
@@ -71,7 +71,7 @@ class RuckigParameterizer:
             jerk_scale=cfg.jerk_scale,
         )
 
-    def parameterize(self, path: npt.ArrayLike, checker: SphereCollisionChecker) -> TimedTrajectory:
+    def parameterize(self, path: npt.ArrayLike, checker: CollisionChecker) -> TimedTrajectory:
         cfg = self.cfg
         t_start = time.perf_counter()
         limits = self.limits(checker)
@@ -152,7 +152,7 @@ class RuckigParameterizer:
         self,
         planner: SegmentPlanner,
         P: Array,
-        checker: SphereCollisionChecker,
+        checker: CollisionChecker,
         figures: dict[str, float],
         notes: list[str],
     ) -> tuple[list[tuple[str, int]], list[ruckig.Trajectory]]:
@@ -222,7 +222,7 @@ def _length(P: Array) -> float:
 
 
 def time_parameterize(
-    path: npt.ArrayLike, checker: SphereCollisionChecker, cfg: TimingCfg | None = None
+    path: npt.ArrayLike, checker: CollisionChecker, cfg: TimingCfg | None = None
 ) -> TimedTrajectory:
     """The data flow's ``execution.time_parameterize``: :class:`RuckigParameterizer` with
     ``cfg`` (default: blended at 500 Hz) on ``path`` (K, dof) rad."""

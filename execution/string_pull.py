@@ -19,13 +19,13 @@ import numpy as np
 import numpy.typing as npt
 
 from execution.path_input import MIN_STEP
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 
 Array = npt.NDArray[np.float64]
 
 
 def _coarse_valid(
-    checker: SphereCollisionChecker, q0: Array, Q1: Array, stride: int
+    checker: CollisionChecker, q0: Array, Q1: Array, stride: int
 ) -> npt.NDArray[np.bool_]:
     """(C,) False where edge q0 -> Q1[c] certainly collides (a coarse sample is invalid)."""
     Q0 = np.broadcast_to(q0, Q1.shape)
@@ -39,7 +39,7 @@ def _coarse_valid(
 
 
 def pull_string(
-    path: Array, checker: SphereCollisionChecker, *, stride: int = 8, max_skip: int = 16
+    path: Array, checker: CollisionChecker, *, stride: int = 8, max_skip: int = 16
 ) -> Array:
     """The path (K, dof) rad with the waypoints that valid straight edges can skip removed.
 

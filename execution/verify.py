@@ -13,7 +13,7 @@ import numpy.typing as npt
 from core.errors import TimingError
 from execution.limits import JointLimits
 from execution.trajectory import TimedTrajectory
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 
 Array = npt.NDArray[np.float64]
 
@@ -72,7 +72,7 @@ def path_deviation(traj: TimedTrajectory, *, rate_hz: float = 1000.0) -> float:
 
 
 def swept_collisions(
-    traj: TimedTrajectory, checker: SphereCollisionChecker, *, rate_hz: float = 1000.0
+    traj: TimedTrajectory, checker: CollisionChecker, *, rate_hz: float = 1000.0
 ) -> int:
     """Number of invalid motions between consecutive samples at ``rate_hz``: each pair is
     checked as an edge (both samples and every step between them at the checker's

@@ -33,7 +33,7 @@ from gaide.synthetic.scene import fixed_scene, hand_eye_scene
 from perception.bag_reader import read_bag
 from perception.cloud import CloudCfg, scene_cloud
 from perception.frames import ImageStream
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
@@ -73,7 +73,7 @@ def run_perception_benchmark(
         )
         # hand-eye
         he = hand_eye_scene(
-            robot, lambda w: SphereCollisionChecker(robot, spheres, w), rng, states=handeye_poses
+            robot, lambda w: make_checker(robot, spheres, w), rng, states=handeye_poses
         )
         bag_he, truth_he = record_scene(he, robot, folder / "hand_eye.bag", rng, progress=progress)
         gt_he = load_ground_truth(truth_he)
@@ -100,7 +100,7 @@ def run_perception_benchmark(
         bag_speed, _ = record_scene(
             speed_scene, robot, folder / "speed.bag", rng, progress=progress
         )
-        checker = SphereCollisionChecker(robot, spheres)
+        checker = make_checker(robot, spheres)
         robot_spheres = (checker.sphere_centers(scene.joint_states[:1])[0], checker.radii)
         cfg = CloudCfg(max_frames=speed_frames)
         t0 = time.perf_counter()

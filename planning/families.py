@@ -27,7 +27,8 @@ from scipy.spatial.transform import Rotation
 
 from core.errors import PlanningError
 from core.transforms import from_xyz_rpy
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
+from planning.collision import CollisionChecker
 from planning.ik import IKCfg, solve_ik
 from planning.primitives import Box, Cylinder, Primitive, PrimitiveWorld
 from planning.problem import Problem, difficulty
@@ -200,7 +201,7 @@ def reach_pose(xyz: npt.ArrayLike, heading: float, tilt: float, roll: float) -> 
 @dataclass
 class _Ctx:
     robot: RobotModel
-    checker: SphereCollisionChecker
+    checker: CollisionChecker
     rng: np.random.Generator
 
     def ik(self, T: Array) -> Array | None:
@@ -398,7 +399,7 @@ def generate_problem(
     for _ in range(scene_attempts):
         prims, start_target, goal_target = _scene(family, rng)
         world = PrimitiveWorld(prims)
-        ctx = _Ctx(robot, SphereCollisionChecker(robot, spheres, world), rng)
+        ctx = _Ctx(robot, make_checker(robot, spheres, world), rng)
         start = _solve(ctx, start_target, target_attempts)
         if start is None:
             continue

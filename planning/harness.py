@@ -127,9 +127,9 @@ def _run(task: tuple[dict[str, Any] | tuple[str, int], str, float, bool]) -> Run
         _problem(spec) if isinstance(spec, tuple) else problem_from_dict(spec, "problem", robot.dof)
     )
     gen_s = time.perf_counter() - t0
-    from planning.collision import SphereCollisionChecker
+    from planning.checker import make_checker
 
-    checker = SphereCollisionChecker(robot, spheres, problem.world)
+    checker = make_checker(robot, spheres, problem.world)
     rng = np.random.default_rng([problem.seed, zlib.crc32(planner_name.encode())])
     checkpoint = None
     if _WEIGHTS is not None and planner_name not in CLASSICAL:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from core.errors import PlanningError
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 from planning.distance_field import CloudWorld
 from planning.neural.sampler import Sampler, cached_sampler
 from planning.planner import Array, PlanResult, PlanStatus, check_budget, check_endpoints
@@ -34,7 +34,7 @@ MODES = ("paper", "hybrid")
 SCENE_POINTS = 2048
 
 
-def scene_cloud_of(checker: SphereCollisionChecker, seed: int = 0) -> Array:
+def scene_cloud_of(checker: CollisionChecker, seed: int = 0) -> Array:
     """The network's view of the checker's world: surface samples of primitives, or the
     cloud itself (base frame)."""
     world = checker.world
@@ -113,7 +113,7 @@ class NeuralPlanner:
 
     def plan(
         self,
-        checker: SphereCollisionChecker,
+        checker: CollisionChecker,
         start: Array,
         goal: Array,
         *,
@@ -158,7 +158,7 @@ class _Run:
         self,
         planner: NeuralPlanner,
         sampler: Sampler,
-        checker: SphereCollisionChecker,
+        checker: CollisionChecker,
         deadline: float,
         rng: np.random.Generator,
     ) -> None:

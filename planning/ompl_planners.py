@@ -6,10 +6,10 @@ path-length objective gets a cost threshold of 0 rad, which no path reaches, so 
 budget ends them.
 
 OMPL sees the project's checker twice: as the state validity checker (one configuration per
-call) and as the motion validator (one straight joint-space edge per call, checked by
-:meth:`~planning.collision.SphereCollisionChecker.edges_valid` at the checker's resolution, all
-samples in one vectorized batch). OMPL's own discrete motion checking is never used, so a
-path OMPL accepts is a path the project's checker accepts. The budget is enforced by the
+call) and as the motion validator (one straight joint-space edge per call, certified by
+:meth:`~planning.collision.CollisionChecker.edges_valid`), each one compiled call with the
+default checker. OMPL's own discrete motion checking is never used, so a path OMPL accepts is
+a path the project's checker certifies. The budget is enforced by the
 termination condition and, for planners that check it only between long inner loops, by the
 callbacks, which refuse every state and motion once the budget is spent.
 
@@ -38,7 +38,7 @@ from ompl import geometric as og
 from ompl import util as ou
 
 from core.errors import PlanningError
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 from planning.planner import Array, PlanResult, PlanStatus, check_budget, check_endpoints
 
 log = logging.getLogger(__name__)
@@ -101,13 +101,11 @@ class _Counters:
 class _EdgeValidator(ob.MotionValidator):  # type: ignore[misc]
     """OMPL motion validator: one straight joint-space edge through ``edges_valid``."""
 
-    def __init__(
-        self, si: Any, checker: SphereCollisionChecker, dof: int, counters: _Counters
-    ) -> None:
+    def __init__(self, si: Any, checker: CollisionChecker, dof: int, counters: _Counters) -> None:
         super().__init__(si)
         self._checker = checker
-        self._q0 = np.zeros((1, dof))
-        self._q1 = np.zeros((1, dof))
+        self._q0 = np.zeros(dof)
+        self._q1 = np.zeros(dof)
         self._dims = range(dof)
         self._counters = counters
 
@@ -116,11 +114,11 @@ class _EdgeValidator(ob.MotionValidator):  # type: ignore[misc]
         c = self._counters
         if c.cutoff is not None and t > c.cutoff:
             return c.refuse()
-        q0, q1 = self._q0[0], self._q1[0]
+        q0, q1 = self._q0, self._q1
         for i in self._dims:
             q0[i] = s1[i]
             q1[i] = s2[i]
-        ok = bool(self._checker.edges_valid(self._q0, self._q1)[0])
+        ok = self._checker.edge_valid_one(q0, q1)
         c.motion_checks += 1
         c.invalid_motions += not ok
         c.motion_time_s += time.perf_counter() - t
@@ -128,11 +126,11 @@ class _EdgeValidator(ob.MotionValidator):  # type: ignore[misc]
 
 
 def _validity_callback(
-    checker: SphereCollisionChecker, dof: int, counters: _Counters
+    checker: CollisionChecker, dof: int, counters: _Counters
 ) -> Callable[[Any], bool]:
-    """OMPL state validity callback: one configuration, in a reused (1, dof) buffer."""
-    buf = np.zeros((1, dof))
-    row = buf[0]
+    """OMPL state validity callback: one configuration, in a reused (dof,) buffer, one
+    compiled call."""
+    row = np.zeros(dof)
     dims = range(dof)
 
     def valid(state: Any) -> bool:
@@ -141,7 +139,7 @@ def _validity_callback(
             return counters.refuse()
         for i in dims:
             row[i] = state[i]
-        ok = bool(checker.config_valid(buf)[0])
+        ok = checker.config_valid_one(row)
         counters.validity_calls += 1
         counters.validity_time_s += time.perf_counter() - t
         return ok
@@ -204,7 +202,7 @@ class OmplPlanner:
 
     def plan(
         self,
-        checker: SphereCollisionChecker,
+        checker: CollisionChecker,
         start: Array,
         goal: Array,
         *,
@@ -225,7 +223,7 @@ class OmplPlanner:
 
     def plan_between(
         self,
-        checker: SphereCollisionChecker,
+        checker: CollisionChecker,
         starts: Array,
         goals: Array,
         *,
@@ -252,7 +250,7 @@ class OmplPlanner:
 
     def _plan(
         self,
-        checker: SphereCollisionChecker,
+        checker: CollisionChecker,
         starts: Array,
         goals: Array,
         t0: float,
@@ -275,7 +273,7 @@ class OmplPlanner:
 
     def _solve(
         self,
-        checker: SphereCollisionChecker,
+        checker: CollisionChecker,
         starts: Array,
         goals: Array,
         t0: float,
@@ -433,7 +431,7 @@ class OmplPlanner:
 
     def _finish(
         self,
-        checker: SphereCollisionChecker,
+        checker: CollisionChecker,
         path: Array,
         starts: Array,
         goals: Array,
@@ -463,7 +461,7 @@ class OmplPlanner:
         return PlanStatus.SUCCESS, path, "", stats
 
 
-def _repair(checker: SphereCollisionChecker, path: Array) -> tuple[Array, int, int | None]:
+def _repair(checker: CollisionChecker, path: Array) -> tuple[Array, int, int | None]:
     """``path`` (K, dof) with the edges the checker rejects replaced by skipping one of their
     waypoints, where the checker accepts the skip. Returns the path, the number of
     waypoints dropped, and the index of an edge that could not be repaired (None if none).

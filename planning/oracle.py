@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from core.errors import PlanningError
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 from planning.ompl_planners import ANYTIME_PLANNERS, OmplPlanner
 from planning.planner import (
     Array,
@@ -42,7 +42,7 @@ _SHORTCUT_PATIENCE = 12
 
 
 def _refine(
-    path: Array, checker: SphereCollisionChecker, rng: np.random.Generator, deadline: float
+    path: Array, checker: CollisionChecker, rng: np.random.Generator, deadline: float
 ) -> Array:
     """``path`` shortcut until it stops improving or the deadline passes."""
     return shortcut(
@@ -56,7 +56,7 @@ def _refine(
 
 
 def oracle_path(
-    checker: SphereCollisionChecker,
+    checker: CollisionChecker,
     start: Array,
     goal: Array,
     rng: np.random.Generator,
@@ -155,7 +155,7 @@ def oracle_path(
 
 
 def oracle_quality(
-    checker: SphereCollisionChecker,
+    checker: CollisionChecker,
     start: Array,
     goal: Array,
     rng: np.random.Generator,

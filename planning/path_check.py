@@ -1,7 +1,8 @@
 """The harness's own check of a returned path, independent of the planner that made it.
 
-Finer than any planner checks (half the robot's edge resolution, against the exact
-primitive world), and optionally against the real meshes in PyBullet.
+Every configuration sampled at half the robot's edge resolution must be valid against the
+exact primitive world (a necessary condition that every path a planner certified passes;
+see :mod:`planning.collision`), and optionally the real meshes in PyBullet must not touch it.
 """
 
 from __future__ import annotations
@@ -52,9 +53,11 @@ def check_path(
     checker = SphereCollisionChecker(
         robot, spheres, world, resolution=robot.config.edge_resolution * resolution_factor
     )
-    bad = checker.first_invalid_edge(p)
-    if bad is not None:
-        ok = checker.edges_valid(p[:-1], p[1:])
+    # Sampled, not certified: this check asks whether any configuration along the path is
+    # invalid, which a certified path (what every planner returns) never has.
+    ok = checker.edges_valid_sampled(p[:-1], p[1:])
+    if not ok.all():
+        bad = int(np.flatnonzero(~ok)[0])
         steps = checker.edge_steps(p[bad : bad + 1], p[bad + 1 : bad + 2])[0]
         samples = p[bad] + np.linspace(0, 1, steps + 1)[:, None] * (p[bad + 1] - p[bad])
         first = samples[np.flatnonzero(~checker.config_valid(samples))[0]]

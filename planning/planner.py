@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from core.errors import PlanningError
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 
 Array = npt.NDArray[np.float64]
 
@@ -62,7 +62,7 @@ def check_budget(budget_s: float) -> None:
 
 
 def check_endpoints(
-    checker: SphereCollisionChecker, start: Array, goal: Array
+    checker: CollisionChecker, start: Array, goal: Array
 ) -> tuple[PlanStatus, str] | None:
     """The status for an invalid start or goal (with the checker's diagnosis), else None."""
     for status, q, what in (
@@ -82,7 +82,7 @@ class Planner(Protocol):
 
     def plan(
         self,
-        checker: SphereCollisionChecker,
+        checker: CollisionChecker,
         start: Array,
         goal: Array,
         *,

@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import numpy.typing as npt
 
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 
 Array = npt.NDArray[np.float64]
 
@@ -26,7 +26,7 @@ def draw_spheres(ax, centers: Array, radii: Array, color: str, alpha: float = 0.
 
 def render_scene(
     path: str | Path,
-    checker: SphereCollisionChecker,
+    checker: CollisionChecker,
     configurations: list[Array],
     cloud: Array | None = None,
     title: str = "",

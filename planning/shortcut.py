@@ -3,7 +3,7 @@
 :func:`shortcut` shortens a valid path (K, dof) rad by replacing a stretch between two points
 of the path (waypoints or points in the middle of an edge) with a straight edge whenever the
 checker accepts it, then drops waypoints that a straight edge can skip. Every edge it adds is
-checked by :meth:`~planning.collision.SphereCollisionChecker.edges_valid`, the stretch of an
+checked by :meth:`~planning.collision.CollisionChecker.edges_valid`, the stretch of an
 edge it keeps next to a shortcut included, so the result's edges are the input's edges
 (assumed valid) or edges the checker accepted. By the triangle inequality, and because only
 strictly shorter replacements are taken, the result is never longer than the input.

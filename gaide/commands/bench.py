@@ -198,7 +198,7 @@ def cmd_planning(args: argparse.Namespace) -> int:
 def cmd_oracle(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from planning.collision import SphereCollisionChecker
+    from planning.checker import make_checker
     from planning.families import generate_problem, parse_families, split_seed
     from planning.oracle import oracle_quality
 
@@ -207,7 +207,7 @@ def cmd_oracle(args: argparse.Namespace) -> int:
     for fam in parse_families(args.families):
         for i in tqdm(range(args.problems), desc=fam):
             problem = generate_problem(fam, split_seed("val", i), robot, spheres)
-            checker = SphereCollisionChecker(robot, spheres, problem.world)
+            checker = make_checker(robot, spheres, problem.world)
             q = oracle_quality(
                 checker, problem.start, problem.goal, np.random.default_rng(i), budget_s=args.budget
             )

@@ -124,7 +124,7 @@ def cmd_time(args: argparse.Namespace) -> int:
     from execution.ruckig_timing import RuckigParameterizer
     from execution.timing_cfg import TimingCfg, TimingMode
     from execution.verify import limit_violations
-    from planning.collision import SphereCollisionChecker
+    from planning.checker import make_checker
 
     check_trajectory_outputs(args.output)
     robot, spheres = robot_and_spheres(args.robot)
@@ -147,7 +147,7 @@ def cmd_time(args: argparse.Namespace) -> int:
         shortcut=not args.no_shortcut,
     )
     scene = _scene_for(args, raw, args.path, robot, spheres)
-    checker = SphereCollisionChecker(robot, spheres, scene.world)
+    checker = make_checker(robot, spheres, scene.world)
     traj = RuckigParameterizer(cfg).parameterize(raw["path"], checker)
     violations = limit_violations(traj)
     if violations:  # Ruckig keeps the limits by construction; this would be a bug

@@ -195,7 +195,7 @@ def _configuration(text: str | None, robot: Any, what: str) -> np.ndarray:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    from planning.collision import SphereCollisionChecker
+    from planning.checker import make_checker
     from planning.distance_field import CloudWorld
     from planning.registry import make_planner
 
@@ -216,7 +216,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         goal = _configuration(args.goal, robot, "goal")
         source = args.scene
     planner = make_planner(args.planner, checkpoint=args.checkpoint)
-    checker = SphereCollisionChecker(robot, spheres, world)
+    checker = make_checker(robot, spheres, world)
     rng = np.random.default_rng(0 if args.seed is None else args.seed)
     result = planner.plan(checker, start, goal, budget_s=args.budget, rng=rng)
     if result.path is None:

@@ -11,7 +11,7 @@ from gaide.common import robot_and_spheres
 from gaide.synthetic.record import record_scene
 from gaide.synthetic.scene import fixed_scene, hand_eye_scene
 from perception.frames import BagLayout
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -49,7 +49,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     else:
         scene = hand_eye_scene(
             robot,
-            lambda world: SphereCollisionChecker(robot, spheres, world),
+            lambda world: make_checker(robot, spheres, world),
             rng,
             states=args.frames,
         )

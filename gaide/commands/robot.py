@@ -8,7 +8,7 @@ from collections import Counter
 import numpy as np
 
 from gaide.common import print_table, robot_and_spheres
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
 from planning.plot import render_scene
 from planning.robot_model import load_robot
 from planning.spherize import SpherizeCfg, generate_spheres
@@ -86,7 +86,7 @@ def parse_configuration(text: str | None, robot) -> np.ndarray:  # type: ignore[
 def cmd_show(args: argparse.Namespace) -> int:
     robot, spheres = robot_and_spheres(args.robot)
     q = parse_configuration(args.q, robot)
-    checker = SphereCollisionChecker(robot, spheres)
+    checker = make_checker(robot, spheres)
     render_scene(args.output, checker, [q], title=f"{len(spheres)} spheres")
     print(f"wrote {args.output}")
     return 0

@@ -13,7 +13,7 @@ from core.errors import PerceptionError
 from perception.bag_reader import read_bag
 from perception.cloud import CloudCfg, SceneCloud, scene_cloud
 from perception.frames import Frames
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 
@@ -82,7 +82,7 @@ def perceive_bag(
             log.warning("%s has no joint states and none were given: robot points are kept", bag)
         else:
             q = robot.check_configuration(q, "recorded joint state")
-            checker = SphereCollisionChecker(robot, spheres)
+            checker = make_checker(robot, spheres)
             robot_spheres = (checker.sphere_centers(q[None])[0], checker.radii)
     cloud = scene_cloud(frames, T_base_cam, cfg, robot_spheres=robot_spheres)
     return cloud, frames, q

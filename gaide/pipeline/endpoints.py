@@ -22,7 +22,7 @@ import numpy.typing as npt
 
 from core.errors import ConfigError, PlanningError
 from core.transforms import from_xyz_quat
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 from planning.ik import IKCfg, solve_ik
 from planning.robot_model import RobotModel
 
@@ -123,7 +123,7 @@ def reference_configuration(robot: RobotModel, recorded: Array | None) -> Array:
 
 def resolve(
     ep: Endpoint,
-    checker: SphereCollisionChecker,
+    checker: CollisionChecker,
     *,
     recorded: Array | None,
     reference: Array,

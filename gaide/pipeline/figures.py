@@ -19,7 +19,7 @@ from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 from planning.plot import draw_spheres
 
 Array = npt.NDArray[np.float64]
@@ -96,7 +96,7 @@ def poses_along(path: Array, n: int) -> Array:
 
 
 def path_png(
-    checker: SphereCollisionChecker,
+    checker: CollisionChecker,
     path: Array,
     points: Array,
     colors: Array | None,

@@ -18,7 +18,8 @@ from gaide.pipeline.config import PlanningCfg, RunCfg
 from gaide.pipeline.endpoints import Resolved, reference_configuration, resolve
 from gaide.pipeline.runner import StageRecord, StageRunner
 from gaide.pipeline.sense import CameraPose, Sensed, Setup
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
+from planning.collision import CollisionChecker
 from planning.distance_field import CloudWorld
 from planning.planner import Planner, PlanResult, PlanStatus
 
@@ -27,7 +28,7 @@ Array = npt.NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Planned:
-    checker: SphereCollisionChecker  # the perceived scene's checker
+    checker: CollisionChecker  # the perceived scene's checker
     start: Resolved
     goal: Resolved
     result: PlanResult  # the successful attempt
@@ -49,7 +50,7 @@ def make_run_planner(p: PlanningCfg) -> Planner:
 
 
 def _attempts(
-    planner: Planner, checker: SphereCollisionChecker, start: Array, goal: Array, p: PlanningCfg
+    planner: Planner, checker: CollisionChecker, start: Array, goal: Array, p: PlanningCfg
 ) -> list[PlanResult]:
     """Plan up to ``p.attempts`` times, a fresh seed each, until one succeeds."""
     results: list[PlanResult] = []
@@ -63,7 +64,7 @@ def _attempts(
     return results
 
 
-def _endpoint(checker: SphereCollisionChecker, r: Resolved) -> Resolved:
+def _endpoint(checker: CollisionChecker, r: Resolved) -> Resolved:
     """Refuse an endpoint outside the limits or in collision, naming the links."""
     diag = checker.diagnose(r.q)
     if not diag.valid:
@@ -84,7 +85,7 @@ def planning_stage(
 ) -> Planned:
     p = cfg.planning
     world = CloudWorld(sensed.cloud.points, voxel=p.world_voxel)
-    checker = SphereCollisionChecker(setup.robot, setup.spheres, world)
+    checker = make_checker(setup.robot, setup.spheres, world)
     rng = np.random.default_rng(p.seed)
     reference = reference_configuration(setup.robot, sensed.recorded)
     kw: dict[str, Any] = {"recorded": sensed.recorded, "rng": rng, "restarts": p.ik_restarts}

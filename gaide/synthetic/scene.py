@@ -14,7 +14,7 @@ from calibration.targets import Charuco, Target
 from core.errors import ConfigError
 from core.transforms import from_xyz_rpy, invert
 from gaide.synthetic.camera import VirtualCamera, d435_like, look_at
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 from planning.ik import IKCfg, solve_ik
 from planning.primitives import Box, PrimitiveWorld, primitive_mesh
 from planning.robot_model import RobotModel
@@ -136,7 +136,7 @@ def hand_eye_scene(
     """A ChArUco board on the flange, shown to a fixed camera in ``states`` poses that turn
     about several axes (as hand-eye needs), each reached by collision-free IK.
 
-    checker_for: function (world) -> SphereCollisionChecker, so the robot avoids the table.
+    checker_for: function (world) -> CollisionChecker, so the robot avoids the table.
     """
     target: Target = Charuco(squares_x=5, squares_y=4, square_size=0.035, marker_size=0.026)
     x0, x1, y0, y1 = target_plate(target)[1]
@@ -150,7 +150,7 @@ def hand_eye_scene(
     ]
     table = Box(np.array([1.4, 1.4, 0.04]), from_xyz_rpy([0.3, 0.0, TABLE_TOP - 0.02], [0, 0, 0]))
     world = PrimitiveWorld([table])
-    checker: SphereCollisionChecker = checker_for(world)
+    checker: CollisionChecker = checker_for(world)
     color, depth = d435_like()
     camera = VirtualCamera(
         color=color, depth=depth, T_base_cam=look_at([1.3, -0.7, 0.8], [0.4, 0.0, 0.35])

@@ -33,7 +33,7 @@ import numpy.typing as npt
 
 from core.atomic import write_bytes_atomic
 from core.errors import GaideError, ModelError
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
 from planning.families import FAMILIES, generate_problem, split_seed
 from planning.oracle import oracle_path
 from planning.robot_model import RobotModel
@@ -92,7 +92,7 @@ def one_path(
         problem = generate_problem(fam, seed, robot, spheres)
     except GaideError as err:
         return f"{fam} seed {seed}: {err}"
-    checker = SphereCollisionChecker(robot, spheres, problem.world)
+    checker = make_checker(robot, spheres, problem.world)
     res = oracle_path(
         checker,
         problem.start,

@@ -6,15 +6,16 @@ import pytest
 from execution.ruckig_timing import RuckigParameterizer
 from execution.timing_cfg import TimingCfg, TimingMode
 from execution.trajectory import TimedTrajectory
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
+from planning.collision import CollisionChecker
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 
 
 @pytest.fixture(scope="session")
-def free_checker(robot: RobotModel, spheres: SphereModel) -> SphereCollisionChecker:
+def free_checker(robot: RobotModel, spheres: SphereModel) -> CollisionChecker:
     """The UR5 with no obstacles (joint limits and self-collision only)."""
-    return SphereCollisionChecker(robot, spheres)
+    return make_checker(robot, spheres)
 
 
 @pytest.fixture(scope="session")
@@ -32,7 +33,7 @@ def corner_path(robot: RobotModel) -> np.ndarray:
 
 
 @pytest.fixture(scope="session")
-def small_traj(free_checker: SphereCollisionChecker, corner_path: np.ndarray) -> TimedTrajectory:
+def small_traj(free_checker: CollisionChecker, corner_path: np.ndarray) -> TimedTrajectory:
     """A blended trajectory along ``corner_path`` at 100 Hz."""
     cfg = TimingCfg(rate_hz=100.0, mode=TimingMode.BLENDED, shortcut=False)
     return RuckigParameterizer(cfg).parameterize(corner_path, free_checker)

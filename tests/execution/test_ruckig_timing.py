@@ -9,7 +9,8 @@ from core.errors import TimingError
 from execution.ruckig_timing import RuckigParameterizer
 from execution.timing_cfg import TimingCfg, TimingMode
 from execution.verify import distance_to_path, limit_violations, path_deviation, swept_collisions
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
+from planning.collision import CollisionChecker
 from planning.primitives import PrimitiveWorld, Sphere
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
@@ -47,7 +48,7 @@ def paths_and_limits(draw: st.DrawFn) -> tuple[np.ndarray, TimingCfg]:
 )
 @given(paths_and_limits())
 def test_limits_hold_at_every_sample(
-    free_checker: SphereCollisionChecker, robot: RobotModel, case: tuple[np.ndarray, TimingCfg]
+    free_checker: CollisionChecker, robot: RobotModel, case: tuple[np.ndarray, TimingCfg]
 ) -> None:
     offsets, cfg = case
     path = robot.named_configuration("home") + offsets
@@ -73,7 +74,7 @@ def test_limits_hold_at_every_sample(
 
 
 def test_exact_mode_stays_on_the_path_with_unequal_limits(
-    free_checker: SphereCollisionChecker, robot: RobotModel
+    free_checker: CollisionChecker, robot: RobotModel
 ) -> None:
     # Joint 1 moves slightly less than joint 5 but has the lower velocity limit: Ruckig's
     # plain phase synchronization gives up here and curves (0.1 rad off on a real path).
@@ -86,7 +87,7 @@ def test_exact_mode_stays_on_the_path_with_unequal_limits(
 
 
 def test_exact_mode_stops_at_every_waypoint(
-    free_checker: SphereCollisionChecker, corner_path: np.ndarray
+    free_checker: CollisionChecker, corner_path: np.ndarray
 ) -> None:
     cfg = TimingCfg(mode=TimingMode.EXACT, shortcut=False)
     traj = RuckigParameterizer(cfg).parameterize(corner_path, free_checker)
@@ -99,7 +100,7 @@ def test_exact_mode_stops_at_every_waypoint(
 
 
 def test_blended_is_faster_than_exact_and_does_not_stop(
-    free_checker: SphereCollisionChecker, corner_path: np.ndarray
+    free_checker: CollisionChecker, corner_path: np.ndarray
 ) -> None:
     exact = RuckigParameterizer(TimingCfg(mode=TimingMode.EXACT, shortcut=False))
     blended = RuckigParameterizer(TimingCfg(mode=TimingMode.BLENDED, shortcut=False))
@@ -115,7 +116,7 @@ def test_blended_is_faster_than_exact_and_does_not_stop(
 
 
 def test_a_blend_that_clips_an_obstacle_falls_back_and_stays_clear(
-    robot: RobotModel, spheres: SphereModel, free_checker: SphereCollisionChecker
+    robot: RobotModel, spheres: SphereModel, free_checker: CollisionChecker
 ) -> None:
     home = robot.named_configuration("home")
     path = np.array(
@@ -133,7 +134,7 @@ def test_a_blend_that_clips_an_obstacle_falls_back_and_stays_clear(
     worst = q[np.argmax(distance_to_path(q, path))]
     checker = None
     for c in free_checker.sphere_centers(worst[None])[0]:
-        candidate = SphereCollisionChecker(robot, spheres, PrimitiveWorld([Sphere(0.02, c)]))
+        candidate = make_checker(robot, spheres, PrimitiveWorld([Sphere(0.02, c)]))
         if candidate.edges_valid(path[:-1], path[1:]).all():
             checker = candidate
             break
@@ -158,15 +159,13 @@ def test_a_blend_that_clips_an_obstacle_falls_back_and_stays_clear(
         ([[0.0] * 6, [0.0] * 6], "no motion"),
     ],
 )
-def test_bad_paths_are_refused(
-    free_checker: SphereCollisionChecker, path: object, message: str
-) -> None:
+def test_bad_paths_are_refused(free_checker: CollisionChecker, path: object, message: str) -> None:
     with pytest.raises(TimingError, match=message.replace("(", r"\(").replace(")", r"\)")):
         RuckigParameterizer().parameterize(path, free_checker)  # type: ignore[arg-type]
 
 
 def test_a_waypoint_outside_the_limits_is_named_with_its_range(
-    free_checker: SphereCollisionChecker, robot: RobotModel
+    free_checker: CollisionChecker, robot: RobotModel
 ) -> None:
     path = np.stack([robot.named_configuration("home")] * 2)
     path[1, 3] = 3.5
@@ -178,7 +177,7 @@ def test_a_waypoint_outside_the_limits_is_named_with_its_range(
 
 
 def test_a_colliding_edge_is_named_with_its_links(
-    robot: RobotModel, spheres: SphereModel, free_checker: SphereCollisionChecker
+    robot: RobotModel, spheres: SphereModel, free_checker: CollisionChecker
 ) -> None:
     # Edge 1 swings the shoulder from -1.2 to +1.2 rad through home, where a ball waits at
     # the hand; the other edges stay far from it.
@@ -186,7 +185,7 @@ def test_a_colliding_edge_is_named_with_its_links(
     pan = np.array([[-1.2, 0.3, 0, 0, 0, 0], [-1.2, 0, 0, 0, 0, 0], [1.2, 0, 0, 0, 0, 0]])
     path = home + np.vstack([pan, [1.2, 0.3, 0, 0, 0, 0]])
     hand = free_checker.sphere_centers(home[None])[0][-1]
-    checker = SphereCollisionChecker(robot, spheres, PrimitiveWorld([Sphere(0.03, hand)]))
+    checker = make_checker(robot, spheres, PrimitiveWorld([Sphere(0.03, hand)]))
     assert checker.edges_valid(path[:-1], path[1:]).tolist() == [True, False, True]
     with pytest.raises(TimingError) as err:
         RuckigParameterizer().parameterize(path, checker)
@@ -211,7 +210,7 @@ def test_bad_limits_are_refused(changes: dict[str, object]) -> None:
 
 
 def test_limits_of_the_wrong_length_are_refused(
-    free_checker: SphereCollisionChecker, corner_path: np.ndarray
+    free_checker: CollisionChecker, corner_path: np.ndarray
 ) -> None:
     with pytest.raises(TimingError, match="expected 6, one per joint"):
         RuckigParameterizer(TimingCfg(max_velocity=(1.0, 2.0))).parameterize(

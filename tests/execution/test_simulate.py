@@ -6,7 +6,7 @@ import pytest
 from core.errors import ExecutionError
 from execution.simulate import SimCfg, SimStatus, simulate
 from execution.trajectory import TimedTrajectory
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 from planning.primitives import Box, PrimitiveWorld
 from planning.robot_model import RobotModel
 
@@ -23,7 +23,7 @@ def test_the_simulation_tracks_a_trajectory_in_free_space(
 
 
 def test_a_planted_obstacle_is_reported_as_a_contact(
-    small_traj: TimedTrajectory, robot: RobotModel, free_checker: SphereCollisionChecker
+    small_traj: TimedTrajectory, robot: RobotModel, free_checker: CollisionChecker
 ) -> None:
     # A box around where the hand is halfway through the trajectory.
     k = len(small_traj.t) // 2
@@ -42,7 +42,7 @@ def test_a_planted_obstacle_is_reported_as_a_contact(
 
 
 def test_a_cloud_scene_becomes_voxel_boxes(
-    small_traj: TimedTrajectory, robot: RobotModel, free_checker: SphereCollisionChecker
+    small_traj: TimedTrajectory, robot: RobotModel, free_checker: CollisionChecker
 ) -> None:
     k = len(small_traj.t) // 2
     hand = free_checker.sphere_centers(small_traj.q[k][None])[0][-1]

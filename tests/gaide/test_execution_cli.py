@@ -71,13 +71,13 @@ def test_bad_input_exits_with_the_stage_code_and_writes_nothing(
     home = robot.named_configuration("home")
     offsets = [[-1.2, 0.3, 0, 0, 0, 0], [-1.2, 0, 0, 0, 0, 0], [1.2, 0, 0, 0, 0, 0]]
     path = home + np.array([*offsets, [1.2, 0.3, 0, 0, 0, 0]])
-    from planning.collision import SphereCollisionChecker
+    from planning.checker import make_checker
     from planning.sphere_model import SphereModel
 
     assert robot.config.spheres is not None
-    hand = SphereCollisionChecker(robot, SphereModel.load(robot.config.spheres)).sphere_centers(
-        home[None]
-    )[0][-1]
+    hand = make_checker(robot, SphereModel.load(robot.config.spheres)).sphere_centers(home[None])[
+        0
+    ][-1]
     problems = tmp_path / "scene.yaml"
     problems.write_text(
         yaml.safe_dump(

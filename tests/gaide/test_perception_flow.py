@@ -16,7 +16,7 @@ from gaide.synthetic.record import load_ground_truth, record_scene, target_pose_
 from gaide.synthetic.scene import fixed_scene, hand_eye_scene
 from perception.bag_reader import read_bag
 from perception.frames import BagLayout
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
@@ -54,7 +54,7 @@ def test_fixed_calibration_and_cloud_match_the_ground_truth(
     err = np.abs(PrimitiveWorld.from_dict(truth["world"]).distance(cloud.points))
     assert np.median(err) < 0.01
     # the robot's own surface is gone: nothing left inside its (padded) spheres
-    checker = SphereCollisionChecker(robot, spheres)
+    checker = make_checker(robot, spheres)
     centers = checker.sphere_centers(q[None])[0]
     d = np.linalg.norm(cloud.points[:, None] - centers[None], axis=-1) - checker.radii
     assert d.min() > 0.0
@@ -64,9 +64,7 @@ def test_hand_eye_calibration_from_joint_states(
     tmp_path: Path, robot: RobotModel, spheres: SphereModel
 ) -> None:
     rng = np.random.default_rng(3)
-    scene = hand_eye_scene(
-        robot, lambda w: SphereCollisionChecker(robot, spheres, w), rng, states=7
-    )
+    scene = hand_eye_scene(robot, lambda w: make_checker(robot, spheres, w), rng, states=7)
     bag, truth_path = record_scene(
         scene, robot, tmp_path / "he", rng, ros_version=2, storage="mcap"
     )

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from core.errors import PlanningError
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
 from planning.families import (
     FAMILIES,
     MIN_EE_DISTANCE,
@@ -26,7 +26,7 @@ from planning.sphere_model import SphereModel
 def test_generated_problems_are_valid(family: str, robot: RobotModel, spheres: SphereModel) -> None:
     for i in range(3):
         p = generate_problem(family, split_seed("test", i), robot, spheres)
-        checker = SphereCollisionChecker(robot, spheres, p.world)
+        checker = make_checker(robot, spheres, p.world)
         assert checker.config_valid(np.stack([p.start, p.goal])).all(), checker.diagnose(p.start)
         assert robot.within_limits(np.stack([p.start, p.goal])).all()
         gap = np.linalg.norm(robot.frame_pose(p.start)[:3, 3] - robot.frame_pose(p.goal)[:3, 3])

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from core.errors import PlanningError
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
+from planning.collision import CollisionChecker
 from planning.families import generate_problem, split_seed
 from planning.neural_planner import NeuralPlanner
 from planning.path_check import check_path
@@ -53,12 +54,12 @@ def box(robot: RobotModel, spheres: SphereModel) -> Any:
     return generate_problem("box", split_seed("test", 1), robot, spheres)
 
 
-def _checker(robot: RobotModel, spheres: SphereModel, problem: Any) -> SphereCollisionChecker:
-    return SphereCollisionChecker(robot, spheres, problem.world)
+def _checker(robot: RobotModel, spheres: SphereModel, problem: Any) -> CollisionChecker:
+    return make_checker(robot, spheres, problem.world)
 
 
 def test_free_space_gives_the_straight_edge(robot: RobotModel, spheres: SphereModel) -> None:
-    checker = SphereCollisionChecker(robot, spheres, PrimitiveWorld([]))
+    checker = make_checker(robot, spheres, PrimitiveWorld([]))
     start = robot.named_configuration("home")
     goal = start + np.array([0.4, -0.2, 0.1, 0.3, 0.0, 0.5])
     planner = NeuralPlanner("straight", Straight())
@@ -125,7 +126,7 @@ def test_contraction_drops_every_node_a_straight_edge_can_skip(
 ) -> None:
     from planning.neural_planner import _Run
 
-    checker = SphereCollisionChecker(robot, spheres, PrimitiveWorld([]))
+    checker = make_checker(robot, spheres, PrimitiveWorld([]))
     planner = NeuralPlanner("straight", Straight())
     run = _Run(planner, Straight(), checker, float("inf"), np.random.default_rng(0))
     a = robot.named_configuration("home")

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from core.errors import PlanningError
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 from planning.ompl_planners import (
     ANYTIME_PLANNERS,
     PLANNER_NAMES,
@@ -29,12 +29,12 @@ SEED = 7
 
 
 @pytest.fixture(scope="module")
-def wall(robot: RobotModel, spheres: SphereModel) -> SphereCollisionChecker:
+def wall(robot: RobotModel, spheres: SphereModel) -> CollisionChecker:
     return wall_checker(robot, spheres)
 
 
 @pytest.fixture(scope="module")
-def solved(wall: SphereCollisionChecker) -> dict[str, PlanResult]:
+def solved(wall: CollisionChecker) -> dict[str, PlanResult]:
     """Each planner once on the wall problem (the runs are shared by several tests)."""
     start, goal = wall_problem()
     out = {}
@@ -47,7 +47,7 @@ def solved(wall: SphereCollisionChecker) -> dict[str, PlanResult]:
     return out
 
 
-def test_the_wall_problem_needs_a_detour(wall: SphereCollisionChecker) -> None:
+def test_the_wall_problem_needs_a_detour(wall: CollisionChecker) -> None:
     start, goal = wall_problem()
     assert wall.config_valid(np.stack([start, goal])).all()
     assert not wall.edge_valid(start, goal)
@@ -55,7 +55,7 @@ def test_the_wall_problem_needs_a_detour(wall: SphereCollisionChecker) -> None:
 
 @pytest.mark.parametrize("name", PLANNER_NAMES)
 def test_each_planner_solves_the_wall_problem(
-    name: str, solved: dict[str, PlanResult], wall: SphereCollisionChecker
+    name: str, solved: dict[str, PlanResult], wall: CollisionChecker
 ) -> None:
     res = solved[name]
     start, goal = wall_problem()
@@ -94,7 +94,7 @@ def test_anytime_planners_use_their_budget_and_rrtconnect_stops_early(
 
 @pytest.mark.parametrize("which", ["start", "goal"])
 def test_endpoint_in_collision_is_a_status_with_the_diagnosis(
-    which: str, wall: SphereCollisionChecker, rng: np.random.Generator
+    which: str, wall: CollisionChecker, rng: np.random.Generator
 ) -> None:
     start, goal = wall_problem()
     through = start.copy()
@@ -113,7 +113,7 @@ def test_endpoint_in_collision_is_a_status_with_the_diagnosis(
 
 
 def test_goal_outside_the_joint_limits_is_goal_invalid(
-    wall: SphereCollisionChecker, rng: np.random.Generator
+    wall: CollisionChecker, rng: np.random.Generator
 ) -> None:
     start, goal = wall_problem()
     goal[2] = 3.5
@@ -147,14 +147,14 @@ def test_unknown_planner_names_list_the_valid_ones() -> None:
 
 @pytest.mark.parametrize("budget", [0.0, -1.0, float("inf"), float("nan")])
 def test_a_bad_budget_is_refused(
-    budget: float, wall: SphereCollisionChecker, rng: np.random.Generator
+    budget: float, wall: CollisionChecker, rng: np.random.Generator
 ) -> None:
     start, goal = wall_problem()
     with pytest.raises(PlanningError, match="budget_s"):
         make_planner("rrtconnect").plan(wall, start, goal, budget_s=budget, rng=rng)
 
 
-def test_rrtconnect_is_reproducible_for_a_seed(wall: SphereCollisionChecker) -> None:
+def test_rrtconnect_is_reproducible_for_a_seed(wall: CollisionChecker) -> None:
     start, goal = wall_problem()
     planner = make_planner("rrtconnect")
 
@@ -172,7 +172,7 @@ def test_rrtconnect_is_reproducible_for_a_seed(wall: SphereCollisionChecker) -> 
 
 
 def test_anytime_first_solution_is_reproducible_for_a_seed(
-    wall: SphereCollisionChecker,
+    wall: CollisionChecker,
 ) -> None:
     # What OMPL guarantees for an anytime planner under a wall-clock budget: the same seed
     # gives the same sample sequence, hence the same first solution; how far it is refined
@@ -191,7 +191,7 @@ def test_anytime_first_solution_is_reproducible_for_a_seed(
     assert first[2] != first[0]
 
 
-def test_simplify_shortens_the_same_solution(wall: SphereCollisionChecker) -> None:
+def test_simplify_shortens_the_same_solution(wall: CollisionChecker) -> None:
     start, goal = wall_problem()
     raw, simple = (
         make_planner("rrtconnect", simplify=s).plan(
@@ -209,7 +209,7 @@ def test_simplify_shortens_the_same_solution(wall: SphereCollisionChecker) -> No
 
 
 def test_anytime_simplify_leaves_the_simplifier_a_share_of_the_budget(
-    wall: SphereCollisionChecker,
+    wall: CollisionChecker,
 ) -> None:
     # How long each part took depends on the machine's load; what the planner decides does
     # not: the search is cut at 90 % of the budget, and whatever the simplifier returns in
@@ -245,7 +245,7 @@ class _StraightLineSimplifier:
 
 @pytest.mark.parametrize("name", ["rrtconnect", "aorrtc"])
 def test_a_simplified_path_that_cannot_be_repaired_falls_back_to_the_search_s_solution(
-    name: str, wall: SphereCollisionChecker, monkeypatch: pytest.MonkeyPatch
+    name: str, wall: CollisionChecker, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import planning.ompl_planners as mod
 
@@ -265,7 +265,7 @@ def test_a_simplified_path_that_cannot_be_repaired_falls_back_to_the_search_s_so
     assert edges_all_valid(wall, res.path)
 
 
-def test_repair_skips_waypoints_the_checker_rejects(wall: SphereCollisionChecker) -> None:
+def test_repair_skips_waypoints_the_checker_rejects(wall: CollisionChecker) -> None:
     start, goal = wall_problem()
     res = make_planner("rrtconnect").plan(
         wall, start, goal, budget_s=10.0, rng=np.random.default_rng(SEED)
@@ -286,9 +286,7 @@ def test_repair_skips_waypoints_the_checker_rejects(wall: SphereCollisionChecker
 
 
 @pytest.mark.parametrize("name", PLANNER_NAMES)
-def test_a_free_straight_edge_is_solved_by_every_planner(
-    name: str, wall: SphereCollisionChecker
-) -> None:
+def test_a_free_straight_edge_is_solved_by_every_planner(name: str, wall: CollisionChecker) -> None:
     # The wall's start with a goal it can reach in a straight line: OMPL's AORRTC reports
     # such paths as an invalid goal, which the wrapper must not pass on as a failure.
     start, _ = wall_problem()
@@ -303,7 +301,7 @@ def test_a_free_straight_edge_is_solved_by_every_planner(
 
 
 def test_plan_between_joins_one_of_the_starts_to_one_of_the_goals(
-    wall: SphereCollisionChecker,
+    wall: CollisionChecker,
 ) -> None:
     start, goal = wall_problem()
     wrist = np.array([0.0, 0.0, 0.0, 0.0, 0.3, 0.0])
@@ -321,7 +319,7 @@ def test_plan_between_joins_one_of_the_starts_to_one_of_the_goals(
     assert edges_all_valid(wall, res.path)
 
 
-def test_plan_between_refuses_malformed_roots(wall: SphereCollisionChecker) -> None:
+def test_plan_between_refuses_malformed_roots(wall: CollisionChecker) -> None:
     start, goal = wall_problem()
     planner = OmplPlanner("rrtconnect")
     rng = np.random.default_rng(SEED)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core.errors import PlanningError
-from planning.collision import SphereCollisionChecker
+from planning.collision import CollisionChecker
 from planning.oracle import oracle_path, oracle_quality
 from planning.planner import PlanStatus, path_length
 from planning.robot_model import RobotModel
@@ -20,12 +20,12 @@ from tests.planning.ompl_problems import (
 
 
 @pytest.fixture(scope="module")
-def wall(robot: RobotModel, spheres: SphereModel) -> SphereCollisionChecker:
+def wall(robot: RobotModel, spheres: SphereModel) -> CollisionChecker:
     return wall_checker(robot, spheres)
 
 
 def test_oracle_path_is_the_shortest_candidate_resampled(
-    wall: SphereCollisionChecker, rng: np.random.Generator
+    wall: CollisionChecker, rng: np.random.Generator
 ) -> None:
     start, goal = wall_problem()
     res = oracle_path(wall, start, goal, rng, budget_s=2.0, max_step=0.05)
@@ -44,7 +44,7 @@ def test_oracle_path_is_the_shortest_candidate_resampled(
 
 
 def test_oracle_statuses(
-    wall: SphereCollisionChecker,
+    wall: CollisionChecker,
     robot: RobotModel,
     spheres: SphereModel,
     rng: np.random.Generator,
@@ -64,7 +64,7 @@ def test_oracle_statuses(
 
 
 def test_oracle_quality_compares_against_longer_runs(
-    wall: SphereCollisionChecker, rng: np.random.Generator
+    wall: CollisionChecker, rng: np.random.Generator
 ) -> None:
     start, goal = wall_problem()
     q = oracle_quality(wall, start, goal, rng, budget_s=1.5, reference_runs=2, reference_factor=2.0)
@@ -82,9 +82,7 @@ def test_oracle_quality_compares_against_longer_runs(
         oracle_quality(wall, start, goal, rng, reference_planners=("rrtconnect",))
 
 
-def test_oracle_cost_matches_its_path(
-    wall: SphereCollisionChecker, rng: np.random.Generator
-) -> None:
+def test_oracle_cost_matches_its_path(wall: CollisionChecker, rng: np.random.Generator) -> None:
     start, goal = wall_problem()
     res = oracle_path(wall, start, goal, rng, budget_s=1.0, max_step=0.2, connect_runs=0)
     assert res.path is not None, res.detail

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
 from planning.families import generate_problem, split_seed
 from planning.neural.checkpoint import card_path, file_sha256, load_checkpoint, shipped_checkpoint
 from planning.neural.models import MODEL_KINDS
@@ -39,7 +39,7 @@ def test_shipped_gaide_plans_family_problems_that_pass_the_harness_check(
     for i in range(2):
         p = generate_problem(family, split_seed("test", i), robot, spheres)
         res = NeuralPlanner("gaide-hybrid", weights, mode="hybrid").plan(
-            SphereCollisionChecker(robot, spheres, p.world),
+            make_checker(robot, spheres, p.world),
             p.start,
             p.goal,
             budget_s=20.0,

@@ -6,7 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from core.errors import PlanningError
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
+from planning.collision import CollisionChecker
 from planning.ompl_planners import make_planner
 from planning.planner import Array, path_length
 from planning.robot_model import RobotModel
@@ -16,13 +17,11 @@ from tests.planning.ompl_problems import edges_all_valid, wall_checker, wall_pro
 
 
 @pytest.fixture(scope="module")
-def wall(robot: RobotModel, spheres: SphereModel) -> SphereCollisionChecker:
+def wall(robot: RobotModel, spheres: SphereModel) -> CollisionChecker:
     return wall_checker(robot, spheres)
 
 
-def random_valid_path(
-    checker: SphereCollisionChecker, seed: int, waypoints: int, step: float
-) -> Array:
+def random_valid_path(checker: CollisionChecker, seed: int, waypoints: int, step: float) -> Array:
     """A random walk (K, dof) rad of ``waypoints`` valid edges of length ``step`` from the
     wall problem's start: a wandering, non-straight path."""
     rng = np.random.default_rng(seed)
@@ -46,7 +45,7 @@ def random_valid_path(
     step=st.floats(0.05, 0.8),
 )
 def test_shortcut_keeps_ends_never_lengthens_and_every_edge_is_valid(
-    wall: SphereCollisionChecker, seed: int, waypoints: int, step: float
+    wall: CollisionChecker, seed: int, waypoints: int, step: float
 ) -> None:
     path = random_valid_path(wall, seed, waypoints, step)
     out = shortcut(path, wall, np.random.default_rng(seed), iterations=96)
@@ -63,7 +62,7 @@ def test_shortcut_keeps_ends_never_lengthens_and_every_edge_is_valid(
 def test_a_detour_in_free_space_becomes_the_straight_edge(
     robot: RobotModel, spheres: SphereModel, rng: np.random.Generator
 ) -> None:
-    free = SphereCollisionChecker(robot, spheres)
+    free = make_checker(robot, spheres)
     a, b = robot.named_configuration("home"), robot.named_configuration("up")
     assert free.edge_valid(a, b)
     detour = np.stack([a, a + 0.2, (a + b) / 2 + 0.3, b - 0.1, b])
@@ -73,7 +72,7 @@ def test_a_detour_in_free_space_becomes_the_straight_edge(
 
 
 def test_shortcut_straightens_an_rrtconnect_path_around_the_wall(
-    wall: SphereCollisionChecker, rng: np.random.Generator
+    wall: CollisionChecker, rng: np.random.Generator
 ) -> None:
     start, goal = wall_problem()
     res = make_planner("rrtconnect").plan(wall, start, goal, budget_s=10.0, rng=rng)
@@ -86,7 +85,7 @@ def test_shortcut_straightens_an_rrtconnect_path_around_the_wall(
 
 
 def test_a_zero_budget_or_bad_arguments_are_refused(
-    wall: SphereCollisionChecker, rng: np.random.Generator
+    wall: CollisionChecker, rng: np.random.Generator
 ) -> None:
     path = np.stack(wall_problem())
     with pytest.raises(PlanningError):
@@ -97,7 +96,7 @@ def test_a_zero_budget_or_bad_arguments_are_refused(
         shortcut(path[0], wall, rng)  # not (K, dof)
 
 
-def test_remove_redundant_drops_only_skippable_waypoints(wall: SphereCollisionChecker) -> None:
+def test_remove_redundant_drops_only_skippable_waypoints(wall: CollisionChecker) -> None:
     start, goal = wall_problem()
     res = make_planner("rrtconnect").plan(
         wall, start, goal, budget_s=10.0, rng=np.random.default_rng(2)

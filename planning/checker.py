@@ -1,0 +1,53 @@
+"""The one way to get a collision checker: :func:`make_checker`.
+
+Two backends answer the same questions with the same answers (the tests hold them to exact
+agreement): ``compiled`` (numba kernels, :class:`~planning.compiled.checker.CompiledChecker`,
+the default everywhere) and ``numpy`` (the vectorized reference,
+:class:`~planning.collision.SphereCollisionChecker`), selectable with ``--checker numpy``.
+Every planner, the oracle, path shortcutting, timing's re-check and the simulation's
+pre-check take the :class:`~planning.collision.CollisionChecker` protocol and so either one.
+"""
+
+from __future__ import annotations
+
+from core.errors import ConfigError
+from planning.collision import CollisionChecker, SphereCollisionChecker
+from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+from planning.world import World
+
+CHECKERS = ("compiled", "numpy")
+DEFAULT_CHECKER = "compiled"
+
+
+def check_backend(backend: str) -> str:
+    """``backend`` if it names a checker; ConfigError listing the valid ones otherwise."""
+    if backend not in CHECKERS:
+        raise ConfigError(f"unknown checker '{backend}'; valid: {', '.join(CHECKERS)}")
+    return backend
+
+
+def make_checker(
+    robot: RobotModel,
+    spheres: SphereModel,
+    world: World | None = None,
+    *,
+    backend: str = DEFAULT_CHECKER,
+    margin: float | None = None,  # m, default: the robot config's collision margin
+    resolution: float | None = None,  # m, default: the robot config's edge resolution
+    world_ignored_links: tuple[str, ...] | None = None,
+) -> CollisionChecker:
+    """A checker of ``robot`` modelled by ``spheres`` against ``world`` (none: empty)."""
+    cls: type[SphereCollisionChecker] = SphereCollisionChecker
+    if check_backend(backend) == "compiled":
+        from planning.compiled.checker import CompiledChecker
+
+        cls = CompiledChecker
+    return cls(
+        robot,
+        spheres,
+        world,
+        margin=margin,
+        resolution=resolution,
+        world_ignored_links=world_ignored_links,
+    )

@@ -1,0 +1,285 @@
+"""Compiled validity of configurations and certified straight edges.
+
+The definitions and algorithms are those of :mod:`planning.collision` (the numpy reference,
+which runs the same steps; the tests hold the two to exact agreement).
+
+A configuration is checked joint by joint: each joint's links are tested against the world
+as soon as the joint is placed, so most invalid configurations cost a part of the forward
+kinematics; self-collision pairs come last.
+
+An edge is certified by conservative advancement along it (see :mod:`planning.collision`):
+jumps as long as every sphere's clearance allows, resolution steps with the two-sample bound
+where it does not, every sample valid, stopping at the first failure. The reference's coarse
+pre-pass (every 8th resolution sample) is left out here: it never changes the answer, and
+with the jumps it cost more than it saved (measured on the benchmark workcell: 17.8k vs
+20.3k edges/s with primitives, 14.7k vs 17.6k with the cloud).
+
+Entry points (the functions without a leading underscore that take ``I, F, field``) are
+called from Python; the rest are inlined into them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+from numba import njit
+
+from planning.collision import CLEARANCE_CAP, MIN_STEP_DIVISOR
+from planning.compiled.geometry import (
+    Field,
+    _reach_gap,
+    group_gaps,
+    link_world_values,
+    place_all,
+    place_joint,
+    place_links_of_joint,
+    place_root,
+)
+from planning.compiled.layout import Off, offsets
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+@njit(cache=True, inline="always")
+def within_limits(F: FloatArray, X: FloatArray, o: Off) -> bool:
+    """Is the configuration in ``X[o.xq:]`` inside the joint limits?"""
+    for j in range(o.dof):
+        v = X[o.xq + j]
+        if not (F[o.lower + j] <= v <= F[o.upper + j]):
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def self_overlap(I: IntArray, F: FloatArray, X: FloatArray, o: Off) -> bool:
+    """Do the spheres of any self-collision pair overlap (all spheres placed)?"""
+    for g in range(o.G):
+        a, b = I[o.glinks + 2 * g], I[o.glinks + 2 * g + 1]
+        A, B = o.xlc + 3 * a, o.xlc + 3 * b
+        dx, dy, dz = X[A] - X[B], X[A + 1] - X[B + 1], X[A + 2] - X[B + 2]
+        reach = F[o.lradius + a] + F[o.lradius + b]
+        if dx * dx + dy * dy + dz * dz >= reach * reach:
+            continue
+        last, far = -1, False
+        for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
+            i, j = I[o.pairs + 2 * p], I[o.pairs + 2 * p + 1]
+            if i != last:  # pairs come grouped by their first sphere, which is in link a
+                last = i
+                far = _reach_gap(X, F, o, i, b) >= 0.0
+            if far:
+                continue
+            A, B = o.xc + 3 * i, o.xc + 3 * j
+            dx, dy, dz = X[A] - X[B], X[A + 1] - X[B + 1], X[A + 2] - X[B + 2]
+            r = F[o.radii + i] + F[o.radii + j]
+            if dx * dx + dy * dy + dz * dz < r * r:
+                return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def config_ok(
+    I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, margin: float
+) -> bool:
+    """Is the configuration in ``X[o.xq:]`` valid?"""
+    if not within_limits(F, X, o):
+        return False
+    place_root(F, X, o)
+    for j in range(o.J):
+        if j > 0:
+            place_joint(I, F, X, o, j)
+        place_links_of_joint(I, F, X, o, j)
+        for lk in range(I[o.jlstart + j], I[o.jlstart + j + 1]):
+            if link_world_values(I, F, field, X, o, lk, margin, o.xwv) < margin:
+                return False
+    return not self_overlap(I, F, X, o)
+
+
+@njit(cache=True, inline="always")
+def sample_values(
+    I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, margin: float, row: int
+) -> bool:
+    """Capped clearances (S,) at ``X[o.xwv + row S]`` and gaps (P,) at ``X[o.xpv + row P]``
+    for the configuration in ``X[o.xq:]``; False as soon as it is found invalid (outside the
+    limits, a clearance below the margin, an overlap)."""
+    if not within_limits(F, X, o):
+        return False
+    place_all(I, F, X, o)
+    wv, pv = o.xwv + row * o.S, o.xpv + row * o.P
+    for lk in range(o.L):
+        if link_world_values(I, F, field, X, o, lk, CLEARANCE_CAP, wv) < margin:
+            return False
+    for g in range(o.G):
+        if group_gaps(I, F, X, o, g, CLEARANCE_CAP, pv) < 0.0:
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def edge_steps(
+    F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray, resolution: float
+) -> int:
+    """Sub-steps of the edge q0 -> q1 so that no sphere centre moves more than
+    ``resolution`` (m) between samples. Over the whole edge, ``X[o.xreach + s]`` receives
+    sphere s's bound (m) on its motion, ``X[o.xpreach + p]`` pair p's on the change of its
+    centre distance."""
+    top = 0.0
+    for s in range(o.S):
+        acc = 0.0
+        for j in range(o.dof):
+            acc += abs(q1[j] - q0[j]) * F[o.disp + s * o.dof + j]
+        X[o.xreach + s] = acc
+        top = max(top, acc)
+    for p in range(o.P):
+        acc = 0.0
+        for j in range(o.dof):
+            acc += abs(q1[j] - q0[j]) * F[o.pdisp + p * o.dof + j]
+        X[o.xpreach + p] = acc
+    return max(math.ceil(top / resolution), 1)
+
+
+@njit(cache=True, inline="always")
+def set_at(X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray, f: float) -> None:
+    """The configuration at fraction f of the edge q0 -> q1 into ``X[o.xq:]``."""
+    for j in range(o.dof):
+        X[o.xq + j] = q0[j] + f * (q1[j] - q0[j])
+
+
+@njit(cache=True, inline="always")
+def _safe_fraction(I: IntArray, X: FloatArray, o: Off, row: int, margin: float) -> float:
+    """How far along the edge (fraction) no sphere can lose its margin nor a pair its gap,
+    from the sample whose values are in ``row``."""
+    f = np.inf
+    wv, pv = o.xwv + row * o.S, o.xpv + row * o.P
+    for s in range(o.S):
+        r = X[o.xreach + s]
+        if I[o.sworld + s] and r > 0.0:
+            f = min(f, (X[wv + s] - margin) / r)
+    for p in range(o.P):
+        rr = X[o.xpreach + p]
+        if rr > 0.0:
+            f = min(f, X[pv + p] / rr)
+    return f
+
+
+@njit(cache=True, inline="always")
+def _pair_bound_holds(I: IntArray, X: FloatArray, o: Off, margin: float, dt: float) -> bool:
+    """The two-sample bound between the samples in rows 0 and 1 (either order), ``dt`` of
+    the edge apart."""
+    for s in range(o.S):
+        bound = 2.0 * margin + X[o.xreach + s] * dt
+        if I[o.sworld + s] and X[o.xwv + s] + X[o.xwv + o.S + s] < bound:
+            return False
+    for p in range(o.P):
+        if X[o.xpv + p] + X[o.xpv + o.P + p] < X[o.xpreach + p] * dt:
+            return False
+    return True
+
+
+@njit(cache=True)
+def edge_ok(
+    I: IntArray,
+    F: FloatArray,
+    field: Field,
+    X: FloatArray,
+    o: Off,
+    q0: FloatArray,
+    q1: FloatArray,
+    margin: float,
+    resolution: float,
+) -> bool:
+    """Is the straight edge q0 -> q1 (dof,) certified (module docstring)?"""
+    n = edge_steps(F, X, o, q0, q1, resolution)
+    step = 1.0 / n
+    smallest = step / MIN_STEP_DIVISOR
+    t, cur = 0.0, 0
+    set_at(X, o, q0, q1, 0.0)
+    if not sample_values(I, F, field, X, o, margin, 0):
+        return False
+    while t < 1.0:
+        f = _safe_fraction(I, X, o, cur, margin)
+        nxt = 1 - cur
+        if f >= step:  # a jump: nothing can lose its margin before t + f
+            t_next = min(t + f, 1.0)
+            set_at(X, o, q0, q1, t_next)
+            if not sample_values(I, F, field, X, o, margin, nxt):
+                return False
+        else:  # a step the two-sample bound must certify, else the jump f
+            if 2.0 * f < smallest:
+                return False
+            t_next = min(t + min(step, 2.0 * f), 1.0)
+            set_at(X, o, q0, q1, t_next)
+            if not sample_values(I, F, field, X, o, margin, nxt):
+                return False
+            if not _pair_bound_holds(I, X, o, margin, t_next - t):
+                if f < smallest:
+                    return False
+                t_next = min(t + f, 1.0)
+                set_at(X, o, q0, q1, t_next)
+                if not sample_values(I, F, field, X, o, margin, nxt):
+                    return False
+        t, cur = t_next, nxt
+    return True
+
+
+# -- entry points (called from Python) ------------------------------------------------------
+
+
+@njit(cache=True)
+def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
+    """``out[b]`` = validity of configuration ``Q[b]`` (B, dof)."""
+    o = offsets(I)
+    X = np.empty(o.xsize)
+    for b in range(Q.shape[0]):
+        for j in range(o.dof):
+            X[o.xq + j] = Q[b, j]
+        out[b] = config_ok(I, F, field, X, o, margin)
+
+
+@njit(cache=True)
+def config_valid(I, F, field, q, margin):  # type: ignore[no-untyped-def]
+    """Validity of one configuration ``q`` (dof,)."""
+    o = offsets(I)
+    X = np.empty(o.xsize)
+    for j in range(o.dof):
+        X[o.xq + j] = q[j]
+    return config_ok(I, F, field, X, o, margin)
+
+
+@njit(cache=True)
+def edge_valid(I, F, field, q0, q1, margin, resolution):  # type: ignore[no-untyped-def]
+    """Is the edge q0 -> q1 (dof,) certified?"""
+    o = offsets(I)
+    return edge_ok(I, F, field, np.empty(o.xsize), o, q0, q1, margin, resolution)
+
+
+@njit(cache=True)
+def edges_valid(I, F, field, Q0, Q1, margin, resolution, out):  # type: ignore[no-untyped-def]
+    """``out[e]`` = the edge Q0[e] -> Q1[e] (E, dof) is certified."""
+    o = offsets(I)
+    X = np.empty(o.xsize)
+    for e in range(Q0.shape[0]):
+        out[e] = edge_ok(I, F, field, X, o, Q0[e], Q1[e], margin, resolution)
+
+
+@njit(cache=True)
+def first_invalid_edge(I, F, field, path, margin, resolution):  # type: ignore[no-untyped-def]
+    """Index of the first edge path[i] -> path[i + 1] that is not certified, or -1."""
+    o = offsets(I)
+    X = np.empty(o.xsize)
+    for i in range(path.shape[0] - 1):
+        if not edge_ok(I, F, field, X, o, path[i], path[i + 1], margin, resolution):
+            return i
+    return -1
+
+
+@njit(cache=True)
+def edge_step_counts(I, F, Q0, Q1, resolution, out):  # type: ignore[no-untyped-def]
+    """``out[e]``: sub-steps of edge e (see :func:`edge_steps`)."""
+    o = offsets(I)
+    X = np.empty(o.xsize)
+    for e in range(Q0.shape[0]):
+        out[e] = edge_steps(F, X, o, Q0[e], Q1[e], resolution)
