@@ -25,7 +25,7 @@ from planning.families import FAMILIES, generate_problem, split_seed
 from planning.path_check import check_path
 from planning.planner import PlanStatus
 from planning.problem import Problem, load_problems, problem_from_dict
-from planning.registry import CLASSICAL, make_planner, planner_names
+from planning.registry import is_neural, make_planner, planner_names
 from planning.robot_model import RobotModel, load_robot
 from planning.sphere_model import SphereModel
 
@@ -54,7 +54,7 @@ class HarnessCfg:
         if self.problems < 1 or self.workers < 1:
             raise PlanningError("need at least one problem per family and one worker")
         if self.weights is not None:
-            kinds = {p.removesuffix("-hybrid") for p in self.planners if p not in CLASSICAL}
+            kinds = {p.removesuffix("-hybrid") for p in self.planners if is_neural(p)}
             missing = sorted(k for k in kinds if not (self.weights / f"{k}.pt").is_file())
             if missing:
                 raise PlanningError(
@@ -132,7 +132,7 @@ def _run(task: tuple[dict[str, Any] | tuple[str, int], str, float, bool]) -> Run
     checker = make_checker(robot, spheres, problem.world)
     rng = np.random.default_rng([problem.seed, zlib.crc32(planner_name.encode())])
     checkpoint = None
-    if _WEIGHTS is not None and planner_name not in CLASSICAL:
+    if _WEIGHTS is not None and is_neural(planner_name):
         checkpoint = _WEIGHTS / f"{planner_name.removesuffix('-hybrid')}.pt"
     result = make_planner(planner_name, checkpoint=checkpoint).plan(
         checker, problem.start, problem.goal, budget_s=budget, rng=rng
@@ -285,7 +285,7 @@ def run_harness(
                     if p != cfg.reference:
                         # As the paper: the classical planners get the reference's mean time;
                         # the other neural planners run under the same budget as the reference.
-                        budgets[fam][p] = max(mean, 0.05) if p in CLASSICAL else ref_budget
+                        budgets[fam][p] = ref_budget if is_neural(p) else max(mean, 0.05)
             others = [p for p in cfg.planners if p != cfg.reference]
             notes.append(
                 f"budget auto: the classical planners get each family's mean {cfg.reference} "

@@ -299,13 +299,15 @@ class _Run:
         return np.concatenate([p for p in pieces if len(p)])
 
     def rrtconnect(self, a: Array, b: Array) -> Array | None:
-        """A segment from ``a`` to ``b`` by RRT-Connect (see :meth:`connect`)."""
+        """A segment from ``a`` to ``b`` by the compiled RRT-Connect (see :meth:`connect`)."""
         res = self.connect(a[None], b[None])
         return None if res is None else res[0]
 
     def connect(self, starts: Array, goals: Array) -> tuple[Array, int, int] | None:
-        """RRT-Connect from any of ``starts`` to any of ``goals`` with the time left: the
-        path and the indices of the start and goal it joins; None if OMPL gave up early.
+        """The compiled RRT-Connect (``rrtc``, without its shortcut pass: the neural path is
+        contracted as a whole afterwards) from any of ``starts`` to any of ``goals`` with the
+        time left: the path and the indices of the start and goal it joins; None if it gave
+        up early.
 
         RRT-Connect's time to solve a shelf problem is heavy-tailed (one seed 0.2 s, another
         over 5 s on the same problem), so it runs in slices of growing length
@@ -313,8 +315,9 @@ class _Run:
         the first slice has every root; the restarts root the first start and the last goal
         alone: where the first slice failed, the other roots are where the network got stuck
         (on one shelf problem, roots there let 1 seed in 8 through; the bare ends, 7)."""
-        from planning.ompl_planners import OmplPlanner
+        from planning.rrtc import CompiledRRTConnect, RRTCCfg
 
+        rrtc = CompiledRRTConnect(RRTCCfg(simplify=False))
         self.stats["fallback_segments"] += 1
         slice_s = self.p.restart_s
         roots = (starts, goals)
@@ -322,9 +325,7 @@ class _Run:
             left = self.deadline - time.perf_counter()
             if left <= 0.01:
                 raise _Timeout
-            res = OmplPlanner("rrtconnect").plan_between(
-                self.checker, *roots, budget_s=min(slice_s, left), rng=self.rng
-            )
+            res = rrtc.plan_between(self.checker, *roots, budget_s=min(slice_s, left), rng=self.rng)
             if res.path is not None:
                 if roots[0] is starts:
                     return res.path, int(res.stats["start_index"]), int(res.stats["goal_index"])

@@ -8,6 +8,8 @@ from core.errors import ConfigError, PlanningError
 from planning.planner import Planner
 
 CLASSICAL = ("rrtconnect", "rrtstar", "informed_rrtstar", "bitstar", "aorrtc")
+# Compiled whole (planning/compiled): RRT-Connect with its shortcut pass.
+COMPILED = ("rrtc",)
 # Neural planners, paper mode (no fallback), with the repository's shipped weights; and in
 # hybrid mode (RRT-Connect for what the network cannot repair): GAIDE, and its ablations for
 # Table II in both modes.
@@ -15,8 +17,13 @@ NEURAL = ("gaide", "gaide-v", "gaide-h", "mpnet", "simpnet")
 HYBRID = ("gaide-hybrid", "gaide-v-hybrid", "gaide-h-hybrid")
 
 
+def is_neural(name: str) -> bool:
+    """Does planner ``name`` load network weights?"""
+    return name in NEURAL or name in HYBRID
+
+
 def planner_names() -> list[str]:
-    return [*CLASSICAL, *NEURAL, *HYBRID]
+    return [*COMPILED, *CLASSICAL, *NEURAL, *HYBRID]
 
 
 def make_planner(name: str, *, checkpoint: str | Path | None = None, threads: int = 1) -> Planner:
@@ -26,11 +33,15 @@ def make_planner(name: str, *, checkpoint: str | Path | None = None, threads: in
     torch on ``threads`` intra-op threads (0: torch's setting, untouched)."""
     if name not in planner_names():
         raise PlanningError(f"unknown planner '{name}'; valid: {planner_names()}")
-    if name in CLASSICAL:
+    if name in COMPILED or name in CLASSICAL:
         if checkpoint is not None:
             raise ConfigError(
                 f"a checkpoint is for the neural planners {[*NEURAL, *HYBRID]}, not {name}"
             )
+        if name == "rrtc":
+            from planning.rrtc import CompiledRRTConnect
+
+            return CompiledRRTConnect()
         from planning.ompl_planners import OmplPlanner
 
         return OmplPlanner(name)

@@ -36,6 +36,22 @@ class Link:
     parent: str | None  # the link it hangs from in the kinematic tree
 
 
+# Pinocchio joint models a serial arm's planner cannot use (their configurations are not one
+# bounded coordinate per degree of freedom), by the name after "JointModel".
+_JOINT_KINDS = {
+    "FreeFlyer": "floating (a floating base)",
+    "Planar": "planar",
+    "Spherical": "spherical",
+    "SphericalZYX": "spherical",
+    "RUBX": "continuous (unbounded)",
+    "RUBY": "continuous (unbounded)",
+    "RUBZ": "continuous (unbounded)",
+    "RevoluteUnboundedUnaligned": "continuous (unbounded)",
+    "Composite": "composite",
+    "Mimic": "a mimic joint",
+}
+
+
 def _se3(M: pin.SE3) -> Array:
     return np.asarray(M.homogeneous, dtype=float)
 
@@ -52,16 +68,14 @@ class RobotModel:
             self.model = pin.buildModelFromUrdf(str(urdf))
         except (RuntimeError, ValueError) as err:
             raise RobotModelError(f"URDF {urdf} does not parse: {err}") from err
-        if self.model.nq != self.model.nv:
-            bad = [
-                self.model.names[j]
-                for j in range(1, self.model.njoints)
-                if self.model.joints[j].nq != self.model.joints[j].nv
-            ]
-            raise RobotModelError(
-                f"URDF {urdf}: joints {bad} are continuous (unbounded); give them limits "
-                "(revolute) in the URDF: only revolute and prismatic joints are supported"
-            )
+        for j in range(1, self.model.njoints):
+            kind = _JOINT_KINDS.get(self.model.joints[j].shortname()[len("JointModel") :])
+            if kind is not None:
+                raise RobotModelError(
+                    f"URDF {urdf}: joint '{self.model.names[j]}' is {kind}; only revolute "
+                    "(with limits), prismatic and fixed joints are supported"
+                    + (": give it limits (type revolute)" if kind.startswith("continuous") else "")
+                )
         self.data = self.model.createData()
         self.dof = int(self.model.nq)
         self.joint_names: tuple[str, ...] = tuple(self.model.names[1:])

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -26,10 +27,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     gen.add_argument("--out", required=True, help="data directory (resumed if it exists)")
     gen.add_argument("--shard-size", type=int, default=50, help="paths per shard file")
     gen.add_argument("--max-step", type=float, default=0.3, help="path step (rad)")
-    gen.add_argument("--oracle-budget", type=float, default=2.0, help="seconds per path")
     gen.add_argument(
-        "--oracle-rescue", type=float, default=3.0, help="more seconds for a missed problem"
+        "--oracle-runs", type=int, default=8, help="compiled RRT-Connect runs per path"
     )
+    gen.add_argument(
+        "--oracle-iterations", type=int, default=20_000, help="iterations per oracle run"
+    )
+    gen.add_argument(
+        "--oracle-shortcuts", type=int, default=400, help="shortcut attempts per oracle run"
+    )
+    # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
+    # the same labels under load). The old flags are still accepted and say so.
+    for old_flag in ("--oracle-budget", "--oracle-rescue"):
+        gen.add_argument(old_flag, type=float, help=argparse.SUPPRESS)
     gen.add_argument("--workers", type=int, help="processes (default: all cores)")
     gen.add_argument("--robot", help="robot config YAML (default: UR5)")
     gen.set_defaults(func=cmd_data_generate)
@@ -85,15 +95,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 def cmd_data_generate(args: argparse.Namespace) -> int:
     from planning.neural.data import DataCfg, generate
+    from planning.oracle import OracleCfg
 
     cfg = DataCfg(
         families=tuple(parse_families(args.families)),
         paths=args.paths,
         shard_size=args.shard_size,
         max_step=args.max_step,
-        oracle_budget_s=args.oracle_budget,
-        oracle_rescue_s=args.oracle_rescue,
+        oracle=OracleCfg(
+            runs=args.oracle_runs,
+            iterations=args.oracle_iterations,
+            shortcuts=args.oracle_shortcuts,
+        ),
     )
+    if args.oracle_budget is not None or args.oracle_rescue is not None:
+        print(
+            "gaide data generate: note: --oracle-budget/--oracle-rescue are ignored; the oracle "
+            "is budgeted by work (--oracle-runs, --oracle-iterations, --oracle-shortcuts)",
+            file=sys.stderr,
+        )
     t0 = time.perf_counter()
     bar = tqdm(desc="shards", unit="shard")
 

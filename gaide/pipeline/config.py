@@ -15,9 +15,9 @@ from typing import Any, ClassVar
 from core.errors import ConfigError
 from execution.timing_cfg import TimingCfg, TimingMode
 from gaide.pipeline import checks
-from planning.registry import CLASSICAL, HYBRID, NEURAL
+from planning.registry import CLASSICAL, COMPILED, HYBRID, NEURAL
 
-PLANNERS = CLASSICAL + NEURAL + HYBRID
+PLANNERS = COMPILED + CLASSICAL + NEURAL + HYBRID
 EXPORT_FORMATS = ("csv", "json", "bag", "ros2")
 
 

@@ -27,8 +27,9 @@ class CompiledChecker(SphereCollisionChecker):
 
     def __init__(self, *args, **kwargs) -> None:  # type: ignore[no-untyped-def]
         super().__init__(*args, **kwargs)
+        self.tables = checker_tables(self)
         # The kernels' leading arguments: ints, floats, the cloud's lattice.
-        self._tables = checker_tables(self).args()
+        self._tables = self.tables.args()
 
     def config_valid(self, Q: Array) -> Mask:
         Q = self._batch(Q)

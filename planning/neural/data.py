@@ -24,7 +24,7 @@ import math
 import multiprocessing
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +35,7 @@ from core.atomic import write_bytes_atomic
 from core.errors import GaideError, ModelError
 from planning.checker import make_checker
 from planning.families import FAMILIES, generate_problem, split_seed
-from planning.oracle import oracle_path
+from planning.oracle import OracleCfg, oracle_path
 from planning.robot_model import RobotModel
 from planning.scene_views import surface_cloud
 from planning.sphere_model import SphereModel
@@ -53,8 +53,7 @@ class DataCfg:
     shard_size: int = 50
     max_step: float = 0.3  # rad, Euclidean joint step of the stored paths
     scene_points: int = 2048
-    oracle_budget_s: float = 1.5
-    oracle_rescue_s: float = 3.0  # more RRT-Connect time for a problem the oracle missed
+    oracle: OracleCfg = field(default_factory=OracleCfg)  # budgeted by work, not time
 
     def check(self) -> None:
         bad = [f for f in self.families if f not in FAMILIES]
@@ -64,15 +63,10 @@ class DataCfg:
             raise ModelError(
                 f"need paths >= 1 and shard_size >= 1; got {self.paths}, {self.shard_size}"
             )
-        if (
-            not (0 < self.max_step <= 1.0)
-            or self.scene_points < 64
-            or not self.oracle_budget_s > 0
-            or self.oracle_rescue_s < 0
-        ):
+        if not (0 < self.max_step <= 1.0) or self.scene_points < 64:
             raise ModelError(
-                "need 0 < max_step <= 1 rad, scene_points >= 64, oracle_budget_s > 0; got "
-                f"{self.max_step}, {self.scene_points}, {self.oracle_budget_s}"
+                "need 0 < max_step <= 1 rad and scene_points >= 64; got "
+                f"{self.max_step}, {self.scene_points}"
             )
 
 
@@ -93,15 +87,8 @@ def one_path(
     except GaideError as err:
         return f"{fam} seed {seed}: {err}"
     checker = make_checker(robot, spheres, problem.world)
-    res = oracle_path(
-        checker,
-        problem.start,
-        problem.goal,
-        rng,
-        budget_s=cfg.oracle_budget_s,
-        max_step=cfg.max_step,
-        rescue_s=cfg.oracle_rescue_s,
-    )
+    oracle = replace(cfg.oracle, max_step=cfg.max_step)  # labels at the data's step
+    res = oracle_path(checker, problem.start, problem.goal, rng, oracle)
     if res.path is None:
         return f"{fam} seed {seed}: oracle {res.status.value}: {res.detail}"
     cloud = surface_cloud(problem.world, cfg.scene_points, rng)
@@ -179,7 +166,7 @@ def generate(
     cfg.check()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    settings = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()}
+    settings = json.loads(json.dumps(asdict(cfg)))  # tuples as lists, as the manifest reads
     settings["robot_config"] = robot_config
     manifest_path = out / MANIFEST
     done: dict[str, dict[str, Any]] = {}

@@ -14,13 +14,16 @@ from core.errors import ModelError
 from planning.neural.data import DataCfg, generate, load_paths, read_manifest
 from planning.neural.models import ModelCfg
 from planning.neural.train import TrainCfg, Trainer
+from planning.oracle import OracleCfg
 from planning.robot_model import RobotModel
 from tests.conftest import run_cli
 
 TINY = ModelCfg(
     hidden=32, heads=2, ff=64, enc_layers=2, dec_layers=1, scene_points=256, scene_tokens=8
 )
-DATA = DataCfg(families=("tabletop", "box"), paths=4, shard_size=2, oracle_budget_s=0.5)
+DATA = DataCfg(
+    families=("tabletop", "box"), paths=4, shard_size=2, oracle=OracleCfg(runs=2, shortcuts=50)
+)
 
 
 @pytest.fixture(scope="module")

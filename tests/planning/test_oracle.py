@@ -7,7 +7,7 @@ import pytest
 
 from core.errors import PlanningError
 from planning.collision import CollisionChecker
-from planning.oracle import oracle_path, oracle_quality
+from planning.oracle import OracleCfg, oracle_path, oracle_quality
 from planning.planner import PlanStatus, path_length
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
@@ -17,6 +17,8 @@ from tests.planning.ompl_problems import (
     wall_checker,
     wall_problem,
 )
+
+QUICK = OracleCfg(runs=3, iterations=5_000, shortcuts=100, rescue_iterations=0)
 
 
 @pytest.fixture(scope="module")
@@ -28,19 +30,30 @@ def test_oracle_path_is_the_shortest_candidate_resampled(
     wall: CollisionChecker, rng: np.random.Generator
 ) -> None:
     start, goal = wall_problem()
-    res = oracle_path(wall, start, goal, rng, budget_s=2.0, max_step=0.05)
+    res = oracle_path(wall, start, goal, rng, QUICK)
     assert res.status is PlanStatus.SUCCESS, res.detail
     assert res.path is not None
     np.testing.assert_array_equal(res.path[0], start)
     np.testing.assert_array_equal(res.path[-1], goal)
-    assert np.linalg.norm(np.diff(res.path, axis=0), axis=1).max() <= 0.05 + 1e-9
+    assert np.linalg.norm(np.diff(res.path, axis=0), axis=1).max() <= QUICK.max_step + 1e-9
     assert edges_all_valid(wall, res.path)
     costs = dict(res.stats["candidates"])
-    assert "aorrtc" in costs and any(src.startswith("rrtconnect") for src in costs)
+    assert list(costs) == ["rrtc#0", "rrtc#1", "rrtc#2"]
     assert res.stats["winner"] in costs
     assert res.stats["cost_before_resample"] == min(costs.values())
     assert res.cost == pytest.approx(min(costs.values()), rel=1e-9)
-    assert res.time_s <= 2.0 + 1.0  # slack for a loaded machine
+
+
+def test_the_same_seed_gives_the_same_label(wall: CollisionChecker) -> None:
+    # Budgeted by work alone: nothing about the label depends on the clock.
+    start, goal = wall_problem()
+    a, b, c = (
+        oracle_path(wall, start, goal, np.random.default_rng(seed), QUICK) for seed in (5, 5, 6)
+    )
+    assert a.path is not None and b.path is not None and c.path is not None
+    np.testing.assert_array_equal(a.path, b.path)
+    assert a.stats["runs"] == b.stats["runs"]
+    assert c.path.shape != a.path.shape or not np.array_equal(c.path, a.path)
 
 
 def test_oracle_statuses(
@@ -52,22 +65,27 @@ def test_oracle_statuses(
     start, goal = wall_problem()
     inside = goal.copy()
     inside[0] = 0.0
-    res = oracle_path(wall, start, inside, rng, budget_s=1.0)
+    res = oracle_path(wall, start, inside, rng, QUICK)
     assert res.status is PlanStatus.GOAL_INVALID and "forearm_link" in res.detail
     tube = tube_checker(robot, spheres)
-    res = oracle_path(tube, np.zeros(6), robot.named_configuration("up"), rng, budget_s=1.0)
-    assert res.status is PlanStatus.TIMEOUT and res.path is None
+    cfg = OracleCfg(runs=2, iterations=300, rescue_iterations=500)
+    res = oracle_path(tube, np.zeros(6), robot.named_configuration("up"), rng, cfg)
+    assert res.status is PlanStatus.FAILED and res.path is None
     assert res.stats["candidates"] == []
-    assert {status for _, status, _ in res.stats["runs"]} == {"timeout"}
-    with pytest.raises(PlanningError, match="budget_s"):
-        oracle_path(wall, start, goal, rng, budget_s=0.0)
+    assert res.stats["runs"] == [
+        ("rrtc#0", "failed", 300),
+        ("rrtc#1", "failed", 300),
+        ("rescue", "failed", 500),
+    ]
+    with pytest.raises(PlanningError, match="runs >= 1"):
+        OracleCfg(runs=0)
 
 
 def test_oracle_quality_compares_against_longer_runs(
     wall: CollisionChecker, rng: np.random.Generator
 ) -> None:
     start, goal = wall_problem()
-    q = oracle_quality(wall, start, goal, rng, budget_s=1.5, reference_runs=2, reference_factor=2.0)
+    q = oracle_quality(wall, start, goal, rng, cfg=QUICK, reference_runs=2, reference_s=1.0)
     assert q["oracle_status"] == "success"
     assert [name for name, _ in q["reference_costs"]] == ["aorrtc", "bitstar"]
     assert q["reference_cost"] == min(c for _, c in q["reference_costs"])
@@ -76,16 +94,13 @@ def test_oracle_quality_compares_against_longer_runs(
     # Both beat the blocked straight edge's length, a lower bound on any path's cost.
     bound = float(np.linalg.norm(goal - start))
     assert q["oracle_cost"] > bound and q["reference_cost"] > bound
-    # On an easy problem the oracle is near the best known (measured: 1.0 to 1.25).
-    assert q["ratio"] < 1.6
     with pytest.raises(PlanningError, match="anytime"):
         oracle_quality(wall, start, goal, rng, reference_planners=("rrtconnect",))
 
 
 def test_oracle_cost_matches_its_path(wall: CollisionChecker, rng: np.random.Generator) -> None:
     start, goal = wall_problem()
-    res = oracle_path(wall, start, goal, rng, budget_s=1.0, max_step=0.2, connect_runs=0)
+    res = oracle_path(wall, start, goal, rng, OracleCfg(runs=1, iterations=5_000, max_step=0.2))
     assert res.path is not None, res.detail
-    assert [src for src, _ in res.stats["candidates"]] == ["aorrtc"]
-    assert [name for name, _, _ in res.stats["runs"]] == ["aorrtc"]
+    assert [src for src, _ in res.stats["candidates"]] == ["rrtc#0"]
     assert res.cost == pytest.approx(path_length(res.path))

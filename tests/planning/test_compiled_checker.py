@@ -1,0 +1,243 @@
+"""The compiled checker against the numpy reference (exact agreement), against Pinocchio
+(forward kinematics) and against dense sampling (the certified edge keeps the margin)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from core.errors import ConfigError, PlanningError, RobotModelError
+from core.transforms import from_xyz_rpy
+from planning.checker import make_checker
+from planning.collision import SphereCollisionChecker
+from planning.compiled.checker import CompiledChecker
+from planning.distance_field import CloudWorld
+from planning.kinematics import reference_points
+from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere
+from planning.robot_model import RobotModel, load_robot
+from planning.sphere_model import SphereModel
+
+
+def _workcell() -> PrimitiveWorld:
+    """A table under the robot, a shelf-like box, a post and a ball: every primitive kind."""
+    return PrimitiveWorld(
+        [
+            Box(np.array([1.4, 1.4, 0.04]), from_xyz_rpy([0.1, 0, -0.04], [0, 0, 0])),
+            Box(np.array([0.3, 0.6, 0.02]), from_xyz_rpy([0.55, 0.1, 0.35], [0, 0, 0.3])),
+            Cylinder(0.05, 0.6, from_xyz_rpy([-0.3, 0.4, 0.3], [0.2, 0, 0])),
+            Sphere(0.08, np.array([0.2, -0.45, 0.4])),
+        ]
+    )
+
+
+@pytest.fixture(scope="module")
+def worlds(spheres: SphereModel) -> dict[str, object]:
+    prims = _workcell()
+    rng = np.random.default_rng(3)
+    return {
+        "empty": None,
+        "primitives": prims,
+        "cloud": CloudWorld(prims.sample_surface(20_000, rng), voxel=0.01),
+    }
+
+
+def _near(checker: SphereCollisionChecker, rng: np.random.Generator, n: int) -> np.ndarray:
+    """n configurations whose nearest sphere is within 5 cm of the world (valid or not)."""
+    out = []
+    while sum(len(o) for o in out) < n:
+        Q = checker.robot.sample_uniform(rng, 4000)
+        out.append(Q[checker.world_clearance(Q) < 0.05])
+    return np.concatenate(out)[:n]
+
+
+@pytest.mark.parametrize("kind", ["empty", "primitives", "cloud"])
+def test_configurations_agree_exactly(
+    kind: str, worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
+) -> None:
+    world = worlds[kind]
+    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
+    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    rng = np.random.default_rng(0)
+    Q = robot.sample_uniform(rng, 4000)
+    if kind != "empty":
+        Q = np.concatenate([Q, _near(ref, rng, 4000)])
+    expected = ref.config_valid(Q)
+    np.testing.assert_array_equal(fast.config_valid(Q), expected)
+    assert 0.05 < expected.mean() < 0.95, "both valid and invalid configurations are tested"
+    singles = [fast.config_valid_one(q) for q in Q[:300]]
+    np.testing.assert_array_equal(singles, expected[:300])
+
+
+@pytest.mark.parametrize("kind", ["empty", "primitives", "cloud"])
+def test_edges_agree_exactly(
+    kind: str, worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
+) -> None:
+    world = worlds[kind]
+    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
+    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    rng = np.random.default_rng(1)
+    Q = robot.sample_uniform(rng, 3000)
+    if kind != "empty":
+        Q = np.concatenate([Q, _near(ref, rng, 3000)])
+    starts = Q[ref.config_valid(Q)][:150]
+    # Long random edges, and short ones that stay near the obstacles.
+    ends = np.concatenate(
+        [
+            starts[:75] + rng.normal(size=(75, 6)) * 0.8,
+            starts[75:] + rng.normal(size=(len(starts) - 75, 6)) * 0.15,
+        ]
+    )
+    ends = np.clip(ends, robot.lower, robot.upper)
+    expected = ref.edges_valid(starts, ends)
+    np.testing.assert_array_equal(fast.edges_valid(starts, ends), expected)
+    assert 0.05 < expected.mean() < 0.95
+    singles = [fast.edge_valid_one(a, b) for a, b in zip(starts[:40], ends[:40], strict=True)]
+    np.testing.assert_array_equal(singles, expected[:40])
+    path = np.concatenate([starts[:1], ends[:6]])
+    assert fast.first_invalid_edge(path) == ref.first_invalid_edge(path)
+    np.testing.assert_array_equal(fast.edge_steps(starts, ends), ref.edge_steps(starts, ends))
+
+
+def test_a_certified_edge_keeps_the_margin_at_every_point(
+    worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
+) -> None:
+    # Dense sampling (a tenth of the resolution) of certified edges near the obstacles: every
+    # sample keeps the margin from the exact primitives and no self pair overlaps.
+    world = worlds["primitives"]
+    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    fine = SphereCollisionChecker(
+        robot,
+        spheres,
+        world,
+        resolution=robot.config.edge_resolution / 10,  # type: ignore[arg-type]
+    )
+    rng = np.random.default_rng(2)
+    starts = _near(fast, rng, 3000)
+    starts = starts[fast.config_valid(starts)][:120]
+    ends = np.clip(starts + rng.normal(size=starts.shape) * 0.3, robot.lower, robot.upper)
+    ok = fast.edges_valid(starts, ends)
+    assert ok.sum() >= 30
+    assert fine.edges_valid_sampled(starts[ok], ends[ok]).all()
+    clearance = np.concatenate(
+        [
+            fine.world_clearance(a + np.linspace(0, 1, 400)[:, None] * (b - a))
+            for a, b in zip(starts[ok], ends[ok], strict=True)
+        ]
+    )
+    assert clearance.min() >= fast.margin
+
+
+@pytest.mark.parametrize("kind", ["primitives", "cloud"])
+def test_speed_does_not_come_from_leniency(
+    kind: str, worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
+) -> None:
+    # Certified edges are a subset of the edges whose resolution samples are all valid.
+    world = worlds[kind]
+    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    rng = np.random.default_rng(4)
+    Q = robot.sample_uniform(rng, 2000)
+    starts = Q[fast.config_valid(Q)][:200]
+    ends = np.clip(starts + rng.normal(size=starts.shape) * 0.5, robot.lower, robot.upper)
+    certified = fast.edges_valid(starts, ends)
+    sampled = fast.edges_valid_sampled(starts, ends)
+    assert not np.any(certified & ~sampled)
+
+
+def test_make_checker_picks_the_backend(robot: RobotModel, spheres: SphereModel) -> None:
+    assert make_checker(robot, spheres).backend == "compiled"
+    assert type(make_checker(robot, spheres, backend="numpy")) is SphereCollisionChecker
+    with pytest.raises(ConfigError, match="valid: compiled, numpy"):
+        make_checker(robot, spheres, backend="gpu")
+
+
+def test_an_unknown_world_is_refused_by_name(robot: RobotModel, spheres: SphereModel) -> None:
+    class Fog:
+        def distance(self, points: np.ndarray) -> np.ndarray:
+            return np.full(len(points), 1.0)
+
+    with pytest.raises(PlanningError, match=r"not Fog.*--checker numpy"):
+        CompiledChecker(robot, spheres, Fog())  # type: ignore[arg-type]
+    assert SphereCollisionChecker(robot, spheres, Fog()).config_valid(np.zeros((1, 6)))[0]  # type: ignore[arg-type]
+
+
+# -- any serial chain: revolute (aligned or not), prismatic, a base pose ---------------------
+
+CHAIN = """<robot name="chain">
+  <link name="base"><collision><geometry><box size="0.2 0.2 0.1"/></geometry></collision></link>
+  <joint name="yaw" type="revolute"><parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
+  <link name="l1"/>
+  <joint name="slide" type="prismatic"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0.05 0 0.2" rpy="0 0.3 0"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.4" velocity="0.5" effort="1"/></joint>
+  <link name="l2"/>
+  <joint name="tilt" type="revolute"><parent link="l2"/><child link="l3"/>
+    <origin xyz="0.1 0 0" rpy="0.2 0 0.4"/><axis xyz="0 0.6 0.8"/>
+    <limit lower="-2" upper="2" velocity="2" effort="1"/></joint>
+  <link name="l3"/>
+  <joint name="fix" type="fixed"><parent link="l3"/><child link="tip"/>
+    <origin xyz="0.25 0 0"/></joint>
+  <link name="tip"/>
+</robot>"""
+
+CHAIN_SPHERES = """collision_spheres:
+  base: [{center: [0, 0, 0], radius: 0.08}]
+  l1: [{center: [0, 0, 0.05], radius: 0.05}, {center: [0, 0, 0.15], radius: 0.05}]
+  l2: [{center: [0.05, 0, 0], radius: 0.04}, {center: [0.15, 0, 0], radius: 0.04}]
+  l3: [{center: [0.05, 0, 0], radius: 0.03}, {center: [0.15, 0.02, 0], radius: 0.03}]
+  tip: [{center: [0.02, 0, 0], radius: 0.02}]
+"""
+
+
+@pytest.fixture(scope="module")
+def chain(tmp_path_factory: pytest.TempPathFactory) -> tuple[RobotModel, SphereModel]:
+    d: Path = tmp_path_factory.mktemp("chain")
+    (d / "chain.urdf").write_text(CHAIN)
+    (d / "spheres.yaml").write_text(CHAIN_SPHERES)
+    (d / "chain.yaml").write_text(
+        "urdf: chain.urdf\nspheres: spheres.yaml\nend_effector: tip\n"
+        "base_pose: {xyz: [0.3, -0.2, 0.5], rpy: [0.1, -0.2, 0.7]}\n"
+        "world_ignored_links: [base]\n"
+    )
+    robot = load_robot(d / "chain.yaml")
+    return robot, SphereModel.load(d / "spheres.yaml")
+
+
+def test_any_serial_chain_matches_pinocchio_and_the_reference(
+    chain: tuple[RobotModel, SphereModel],
+) -> None:
+    robot, spheres = chain
+    world = PrimitiveWorld(
+        [Box(np.array([0.3, 0.3, 0.3]), from_xyz_rpy([0.6, -0.1, 0.9], [0, 0, 0]))]
+    )
+    ref = SphereCollisionChecker(robot, spheres, world)
+    fast = CompiledChecker(robot, spheres, world)
+    rng = np.random.default_rng(5)
+    Q = robot.sample_uniform(rng, 3000)
+    for q in Q[:50]:
+        centres = fast.sphere_centers(q[None])[0]
+        truth = reference_points(robot, q, fast.sphere_joint, fast.sphere_local)
+        np.testing.assert_allclose(centres, truth, atol=1e-12)
+    expected = ref.config_valid(Q)
+    assert 0.05 < expected.mean() < 0.95
+    np.testing.assert_array_equal(fast.config_valid(Q), expected)
+    starts = Q[expected][:100]
+    ends = np.clip(starts + rng.normal(size=starts.shape) * 0.4, robot.lower, robot.upper)
+    np.testing.assert_array_equal(fast.edges_valid(starts, ends), ref.edges_valid(starts, ends))
+
+
+@pytest.mark.parametrize(
+    ("joint", "kind"),
+    [("floating", "floating"), ("planar", "planar"), ("continuous", "continuous")],
+)
+def test_joints_no_checker_can_represent_are_refused_by_name(
+    tmp_path: Path, joint: str, kind: str
+) -> None:
+    urdf = CHAIN.replace('name="tilt" type="revolute"', f'name="tilt" type="{joint}"')
+    (tmp_path / "chain.urdf").write_text(urdf)
+    (tmp_path / "chain.yaml").write_text("urdf: chain.urdf\nend_effector: tip\n")
+    with pytest.raises(RobotModelError, match=f"joint 'tilt' is {kind}"):
+        load_robot(tmp_path / "chain.yaml")

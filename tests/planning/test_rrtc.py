@@ -1,0 +1,154 @@
+"""The compiled RRT-Connect (``rrtc``) and its shortcut pass, bounded by iterations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.errors import ConfigError, PlanningError
+from planning.checker import make_checker
+from planning.collision import CollisionChecker
+from planning.families import FAMILIES, generate_problem, split_seed
+from planning.path_check import check_path
+from planning.planner import PlanStatus, path_length
+from planning.registry import make_planner
+from planning.robot_model import RobotModel
+from planning.rrtc import CompiledRRTConnect, RRTCCfg, shorten
+from planning.sphere_model import SphereModel
+from tests.planning.ompl_problems import edges_all_valid, tube_checker, wall_checker, wall_problem
+
+# Budgets in seconds are generous safety nets; what bounds a run in these tests is its
+# iteration count, so they hold on a loaded machine.
+BUDGET_S = 60.0
+
+
+@pytest.fixture(scope="module")
+def wall(robot: RobotModel, spheres: SphereModel) -> CollisionChecker:
+    return wall_checker(robot, spheres)
+
+
+def test_rrtc_solves_the_wall_problem_with_a_certified_shorter_path(
+    wall: CollisionChecker,
+) -> None:
+    start, goal = wall_problem()
+    res = make_planner("rrtc").plan(
+        wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(0)
+    )
+    assert res.status is PlanStatus.SUCCESS, res.detail
+    assert res.planner == "rrtc" and res.path is not None
+    np.testing.assert_array_equal(res.path[0], start)
+    np.testing.assert_array_equal(res.path[-1], goal)
+    assert len(res.path) >= 3, "the straight edge is blocked"
+    assert wall.first_invalid_edge(res.path) is None
+    assert edges_all_valid(wall, res.path)
+    assert res.cost <= res.stats["raw_cost"] + 1e-9
+    assert res.stats["iterations"] >= 1 and res.stats["edge_checks"] >= 1
+
+
+def test_the_same_seed_gives_the_same_path(wall: CollisionChecker) -> None:
+    start, goal = wall_problem()
+    planner = CompiledRRTConnect()
+
+    def path(seed: int) -> np.ndarray:
+        res = planner.plan(wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(seed))
+        assert res.path is not None
+        return res.path
+
+    first = path(3)
+    np.testing.assert_array_equal(path(3), first)
+    assert any(not np.array_equal(path(s), first) for s in (4, 5, 6))
+
+
+def test_an_enclosed_goal_fails_after_its_iterations(
+    robot: RobotModel, spheres: SphereModel
+) -> None:
+    tube = tube_checker(robot, spheres)
+    planner = CompiledRRTConnect(RRTCCfg(max_iterations=500))
+    res = planner.plan(
+        tube, np.zeros(6), robot.named_configuration("up"), budget_s=BUDGET_S,
+        rng=np.random.default_rng(1),
+    )  # fmt: skip
+    assert res.status is PlanStatus.FAILED and res.path is None
+    assert res.stats["iterations"] == 500
+    assert "500 iterations" in res.detail
+
+
+def test_the_clock_budget_ends_a_run_with_timeout(robot: RobotModel, spheres: SphereModel) -> None:
+    tube = tube_checker(robot, spheres)
+    res = CompiledRRTConnect().plan(
+        tube, np.zeros(6), robot.named_configuration("up"), budget_s=0.2,
+        rng=np.random.default_rng(1),
+    )  # fmt: skip
+    assert res.status is PlanStatus.TIMEOUT and res.path is None
+
+
+def test_endpoints_in_collision_are_statuses(wall: CollisionChecker) -> None:
+    start, goal = wall_problem()
+    inside = goal.copy()
+    inside[0] = 0.0
+    res = CompiledRRTConnect().plan(wall, start, inside, budget_s=5.0, rng=np.random.default_rng(0))
+    assert res.status is PlanStatus.GOAL_INVALID and "forearm_link" in res.detail
+
+
+def test_plan_between_joins_one_of_many_roots(wall: CollisionChecker) -> None:
+    start, goal = wall_problem()
+    rng = np.random.default_rng(7)
+    shift = np.eye(6)
+    starts = np.stack([start, start + 0.3 * shift[3], start + 0.4 * shift[4]])
+    goals = np.stack([goal + 0.5 * shift[5], goal])
+    assert wall.config_valid(starts).all() and wall.config_valid(goals).all()
+    res = CompiledRRTConnect().plan_between(wall, starts, goals, budget_s=BUDGET_S, rng=rng)
+    assert res.path is not None, res.detail
+    i, j = res.stats["start_index"], res.stats["goal_index"]
+    np.testing.assert_array_equal(res.path[0], starts[i])
+    np.testing.assert_array_equal(res.path[-1], goals[j])
+    assert wall.first_invalid_edge(res.path) is None
+    with pytest.raises(PlanningError, match="starts must be a finite"):
+        CompiledRRTConnect().plan_between(wall, starts[:, :5], goals, budget_s=1.0, rng=rng)
+
+
+def test_a_free_straight_edge_is_the_path(wall: CollisionChecker) -> None:
+    start, _ = wall_problem()
+    goal = start + 0.4 * np.eye(6)[0]
+    res = CompiledRRTConnect().plan(wall, start, goal, budget_s=5.0, rng=np.random.default_rng(0))
+    assert res.path is not None and len(res.path) == 2 and res.stats["straight"]
+
+
+def test_shorten_keeps_the_ends_never_lengthens_and_certifies_every_edge(
+    wall: CollisionChecker,
+) -> None:
+    start, goal = wall_problem()
+    raw = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3)).plan(
+        wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(2)
+    )
+    assert raw.path is not None and len(raw.path) > 4
+    short = shorten(wall, raw.path, np.random.default_rng(3), 300)
+    np.testing.assert_array_equal(short[0], raw.path[0])
+    np.testing.assert_array_equal(short[-1], raw.path[-1])
+    assert path_length(short) < path_length(raw.path)
+    assert len(short) < len(raw.path)
+    assert wall.first_invalid_edge(short) is None
+
+
+@pytest.mark.parametrize("family", FAMILIES)
+def test_rrtc_solves_every_family_and_the_harness_accepts_the_path(
+    family: str, robot: RobotModel, spheres: SphereModel
+) -> None:
+    problem = generate_problem(family, split_seed("test", 1), robot, spheres)
+    checker = make_checker(robot, spheres, problem.world)
+    planner = CompiledRRTConnect(RRTCCfg(max_iterations=200_000))
+    res = planner.plan(
+        checker, problem.start, problem.goal, budget_s=BUDGET_S, rng=np.random.default_rng(1)
+    )
+    assert res.status is PlanStatus.SUCCESS, res.detail
+    check = check_path(res.path, problem.start, problem.goal, robot, spheres, problem.world)
+    assert check.ok, check.detail
+
+
+def test_bad_settings_and_checkpoints_are_refused() -> None:
+    with pytest.raises(PlanningError, match="step must be"):
+        RRTCCfg(step=0.0)
+    with pytest.raises(PlanningError, match="max_iterations >= 1"):
+        RRTCCfg(max_iterations=0)
+    with pytest.raises(ConfigError, match="checkpoint is for the neural planners"):
+        make_planner("rrtc", checkpoint="gaide.pt")
