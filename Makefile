@@ -17,6 +17,8 @@ $(STAMP): pyproject.toml
 	# The CPU wheel first: a looser spec would pull a multi-GB CUDA build.
 	$(BIN)/pip install --quiet torch==2.13.0
 	$(BIN)/pip install --quiet -e '.[dev]'
+	# Compile the planning kernels once; later processes load them from numba's cache.
+	$(BIN)/python -m planning.compiled.warmup
 	@touch $(STAMP)
 
 demo: setup

@@ -1,6 +1,11 @@
 """Simulated execution: PyBullet's position controller tracks a timed trajectory at its rate,
 and the achieved joint states are logged and compared with the plan.
 
+Before PyBullet runs, every sample of the trajectory is checked with the sphere collision
+checker (the pre-check, when a checker is given): the same model the planner certified its
+path with, so a trajectory a planner and timing made passes it; a file from elsewhere
+may not, and the report says where.
+
 The robot starts at rest at the trajectory's first sample. At each control step k (period
 ``1 / rate_hz``, PyBullet's time step) the controller receives the trajectory's sample k+1
 (position target with velocity feed-forward, each joint's force limited to its URDF effort),
@@ -28,6 +33,7 @@ from core.errors import ExecutionError
 from execution.joint_log import JointLog
 from execution.sim_world import SimWorld
 from execution.trajectory import TimedTrajectory
+from planning.collision import CollisionChecker
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 
@@ -98,6 +104,9 @@ class SimResult:
     max_rad: Array  # (dof,) largest absolute tracking error per joint
     contacts: tuple[Contact, ...]
     wall_s: float
+    # the sphere pre-check: samples the checker finds invalid, and the first one's time (s)
+    precheck_invalid: int | None = None  # None: no checker given
+    precheck_first_s: float | None = None
 
     @property
     def rms_all_rad(self) -> float:
@@ -115,6 +124,8 @@ class SimResult:
             "max_all_rad": float(self.max_rad.max()),
             "contacts": [c.as_dict() for c in self.contacts],
             "wall_s": self.wall_s,
+            "precheck_invalid_samples": self.precheck_invalid,
+            "precheck_first_invalid_s": self.precheck_first_s,
         }
 
 
@@ -126,9 +137,12 @@ def simulate(
     cloud: Array | None = None,
     cfg: SimCfg | None = None,
     start_ns: int = 0,
+    checker: CollisionChecker | None = None,
 ) -> SimResult:
     """Track ``traj`` with PyBullet's position control in a scene of primitives or a cloud
-    (base frame, m; none: an empty world). ``start_ns`` is the log's absolute time of t = 0."""
+    (base frame, m; none: an empty world). ``start_ns`` is the log's absolute time of t = 0.
+    With ``checker`` (of the same scene), every sample is pre-checked with the sphere
+    model first (module docstring)."""
     cfg = cfg or SimCfg()
     if tuple(traj.joint_names) != tuple(robot.joint_names):
         raise ExecutionError(
@@ -136,6 +150,11 @@ def simulate(
             f"{list(robot.joint_names)} (same names, same order)"
         )
     t0 = time.perf_counter()
+    precheck_invalid, precheck_first = None, None
+    if checker is not None:
+        bad = np.flatnonzero(~checker.config_valid(traj.q))
+        precheck_invalid = int(bad.size)
+        precheck_first = float(traj.t[bad[0]]) if bad.size else None
     settle = round(cfg.settle_s * traj.rate_hz)
     times = np.concatenate([traj.t, traj.t[-1] + np.arange(1, settle + 1) / traj.rate_hz])
     targets = np.concatenate([traj.q, np.repeat(traj.q[-1:], settle, axis=0)])
@@ -204,6 +223,8 @@ def simulate(
         max_rad=np.abs(error).max(axis=0),
         contacts=contacts,
         wall_s=time.perf_counter() - t0,
+        precheck_invalid=precheck_invalid,
+        precheck_first_s=precheck_first,
     )
 
 

@@ -2,14 +2,26 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 from pathlib import Path
 from typing import Any
 
+from planning.checker import CHECKERS, DEFAULT_CHECKER
 from planning.robot_setup import robot_and_spheres
 
-__all__ = ["print_table", "robot_and_spheres", "write_json"]
+__all__ = ["add_checker_option", "print_table", "robot_and_spheres", "write_json"]
+
+
+def add_checker_option(parser: argparse.ArgumentParser) -> None:
+    """``--checker compiled|numpy``: the collision checker's backend."""
+    parser.add_argument(
+        "--checker",
+        choices=CHECKERS,
+        default=DEFAULT_CHECKER,
+        help="collision checker: compiled (default) or the numpy reference",
+    )
 
 
 def _jsonable(value: Any) -> Any:

@@ -1,11 +1,18 @@
 """``gaide bench collision``: speed and trustworthiness of the sphere collision checker.
 
-Figures (all from one run):
+Figures (all from one run, the compiled checker unless ``checker="numpy"``; one process):
 - ``configs_per_s_cloud`` / ``configs_per_s_primitives``: validity checks per second, batch of
-  10,000 uniform configurations, against a 50,000-point cloud / 20 analytic primitives, one
-  process, median of the repeats.
-- ``edges_per_s``: edges of 1 rad (joint-space length, random directions) against the cloud.
-- ``fk_max_err_m``: batched sphere-centre FK versus Pinocchio, float64.
+  10,000 uniform configurations, against a 50,000-point cloud / 20 analytic primitives,
+  median of the repeats.
+- ``single_call_us``: one configuration checked from Python (``config_valid_one``, what a
+  per-state callback such as OMPL's makes), median; ``single_batch_call_us`` the same
+  through ``config_valid`` on a (1, dof) batch.
+- ``edges_per_s``: edges of 1 rad (joint-space length, random directions, from valid
+  configurations) certified against the cloud, each checked to its end or to its first
+  collision; ``edges_per_s_primitives`` the same against the primitives.
+- ``agreement``: share of the configurations and edges above (both worlds) on which the
+  compiled checker and the numpy reference agree (must be 1.0).
+- ``fk_max_err_m``: the checker's sphere-centre FK versus Pinocchio, float64.
 - ``mesh_missed``: configurations the PyBullet mesh reference finds touching the world but the
   sphere checker calls free, over both worlds, out of ``mesh_samples`` configurations near the
   obstacles (sphere clearance below ``near_band_m``; colliding ones included).
@@ -24,7 +31,8 @@ import numpy as np
 import numpy.typing as npt
 
 from core.transforms import from_xyz_rpy
-from planning.collision import SphereCollisionChecker
+from planning.checker import make_checker
+from planning.collision import CollisionChecker, SphereCollisionChecker
 from planning.distance_field import CloudWorld
 from planning.kinematics import reference_points
 from planning.primitives import Box, Cylinder, Primitive, PrimitiveWorld
@@ -45,6 +53,8 @@ class CollisionBenchCfg:
     near_band: float = 0.10  # m, "near the obstacles"
     repeats: int = 5
     seed: int = 0
+    checker: str = "compiled"  # the backend measured; agreement is always against numpy
+    single_calls: int = 20_000  # one-configuration calls timed
 
 
 def benchmark_workcell(rng: np.random.Generator) -> list[Primitive]:
@@ -81,6 +91,44 @@ def benchmark_workcell(rng: np.random.Generator) -> list[Primitive]:
     return prims
 
 
+def _single_call_us(checker: CollisionChecker, Q: Array, n: int) -> dict[str, float]:
+    """Median microseconds of one configuration checked from Python, per-state call and
+    (1, dof) batch call, over ``n`` calls each."""
+    rows = [np.ascontiguousarray(q) for q in Q[: min(n, len(Q))]]
+    out = {}
+    for key, call in (
+        ("single_call_us", checker.config_valid_one),
+        ("single_batch_call_us", lambda q: checker.config_valid(q[None])),
+    ):
+        times = np.empty(len(rows))
+        for k, q in enumerate(rows):
+            t0 = time.perf_counter()
+            call(q)
+            times[k] = time.perf_counter() - t0
+        out[key] = float(np.median(times) * 1e6)
+    return out
+
+
+def _agreement(
+    robot: RobotModel,
+    spheres: SphereModel,
+    Q: Array,
+    edges: dict[str, tuple[Array, Array]],
+    cloud: tuple[Any, CollisionChecker],
+    prims: tuple[Any, CollisionChecker],
+) -> dict[str, Any]:
+    """Share of configurations and edges on which the checker measured and the numpy
+    reference agree, over both worlds."""
+    same = total = 0
+    for (world, checker), key in ((cloud, ""), (prims, "_primitives")):
+        ref = SphereCollisionChecker(robot, spheres, world)
+        same += int(np.sum(ref.config_valid(Q) == checker.config_valid(Q)))
+        a, b = edges[key]
+        same += int(np.sum(ref.edges_valid(a, b) == checker.edges_valid(a, b)))
+        total += len(Q) + len(a)
+    return {"agreement": same / total, "agreement_cases": total}
+
+
 def _rate(fn: Any, n: int, repeats: int) -> float:
     times = []
     for _ in range(repeats):
@@ -102,23 +150,33 @@ def run_collision_benchmark(
     t0 = time.perf_counter()
     world_c = CloudWorld(world_p.sample_surface(cfg.cloud_points, rng), voxel=cfg.voxel)
     build_s = time.perf_counter() - t0
-    check_p = SphereCollisionChecker(robot, spheres, world_p)
-    check_c = SphereCollisionChecker(robot, spheres, world_c)
+    check_p = make_checker(robot, spheres, world_p, backend=cfg.checker)
+    check_c = make_checker(robot, spheres, world_c, backend=cfg.checker)
     Q = robot.sample_uniform(rng, cfg.batch)
-    check_c.config_valid(Q[:100])  # warm caches
+    check_c.config_valid(Q[:100])  # first calls compile or load the kernels
+    check_p.config_valid(Q[:100])
     results: dict[str, Any] = {
+        "checker": cfg.checker,
         "configs_per_s_cloud": _rate(lambda: check_c.config_valid(Q), cfg.batch, cfg.repeats),
         "configs_per_s_primitives": _rate(lambda: check_p.config_valid(Q), cfg.batch, cfg.repeats),
     }
+    results.update(_single_call_us(check_c, Q, cfg.single_calls))
     valid_share = float(check_c.config_valid(Q).mean())
-    starts = Q[check_c.config_valid(Q)][: cfg.edges]
-    direction = rng.normal(size=starts.shape)
-    ends = starts + direction / np.linalg.norm(direction, axis=1, keepdims=True)
-    results["edges_per_s"] = _rate(
-        lambda: check_c.edges_valid(starts, ends), len(starts), cfg.repeats
-    )
+    edges: dict[str, tuple[Array, Array]] = {}
+    for key, checker in (("", check_c), ("_primitives", check_p)):
+        starts = Q[checker.config_valid(Q)][: cfg.edges]
+        direction = rng.normal(size=starts.shape)
+        ends = starts + direction / np.linalg.norm(direction, axis=1, keepdims=True)
+        edges[key] = (starts, ends)
+        results[f"edges_per_s{key}"] = _rate(
+            lambda c=checker, a=starts, b=ends: c.edges_valid(a, b), len(starts), cfg.repeats
+        )
+    starts, ends = edges[""]
     results["edge_samples_mean"] = float(check_c.edge_steps(starts, ends).mean() + 1)
+    results["edge_valid_share"] = float(check_c.edges_valid(starts, ends).mean())
+    results.update(_agreement(robot, spheres, Q, edges, (world_c, check_c), (world_p, check_p)))
 
+    assert isinstance(check_c, SphereCollisionChecker)  # both backends are
     fk_err = 0.0
     for q in Q[:500]:
         ours = check_c.sphere_centers(q[None])[0]

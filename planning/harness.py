@@ -44,6 +44,7 @@ class HarnessCfg:
     first: int = 0  # index of the first problem in the split
     workers: int = field(default_factory=lambda: os.cpu_count() or 1)
     mesh_check: bool = False  # also check returned paths against PyBullet's meshes
+    checker: str = "compiled"  # the planners' collision checker (the harness's own check is numpy)
     problem_file: Path | None = None  # bring-your-own problems instead of the families
     robot_config: Path | None = None
     # Neural planners load WEIGHTS/<model>.pt (gaide-hybrid: gaide.pt) instead of the
@@ -118,8 +119,8 @@ def _problem(key: tuple[str, int]) -> Problem:
     return generate_problem(key[0], key[1], *_ROBOT)
 
 
-def _run(task: tuple[dict[str, Any] | tuple[str, int], str, float, bool]) -> RunRecord:
-    spec, planner_name, budget, mesh_check = task
+def _run(task: tuple[dict[str, Any] | tuple[str, int], str, float, bool, str]) -> RunRecord:
+    spec, planner_name, budget, mesh_check, backend = task
     assert _ROBOT is not None
     robot, spheres = _ROBOT
     t0 = time.perf_counter()
@@ -129,7 +130,7 @@ def _run(task: tuple[dict[str, Any] | tuple[str, int], str, float, bool]) -> Run
     gen_s = time.perf_counter() - t0
     from planning.checker import make_checker
 
-    checker = make_checker(robot, spheres, problem.world)
+    checker = make_checker(robot, spheres, problem.world, backend=backend)
     rng = np.random.default_rng([problem.seed, zlib.crc32(planner_name.encode())])
     checkpoint = None
     if _WEIGHTS is not None and is_neural(planner_name):
@@ -264,7 +265,7 @@ def run_harness(
     weights = None if cfg.weights is None else str(cfg.weights)
     with ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(config, weights)) as pool:
 
-        def run_all(tasks: list[tuple[Any, str, float, bool]]) -> None:
+        def run_all(tasks: list[tuple[Any, str, float, bool, str]]) -> None:
             # longest first keeps both cores busy to the end
             tasks.sort(key=lambda t: -t[2])
             it = pool.imap_unordered(_run, tasks)
@@ -274,7 +275,12 @@ def run_harness(
         others = list(cfg.planners)
         if cfg.budget_s is None and cfg.reference in cfg.planners:
             ref_budget = cfg.fallback_budget_s
-            run_all([(spec, cfg.reference, ref_budget, cfg.mesh_check) for _, spec in specs])
+            run_all(
+                [
+                    (spec, cfg.reference, ref_budget, cfg.mesh_check, cfg.checker)
+                    for _, spec in specs
+                ]
+            )
             for fam in families:
                 times = [
                     r.time_s for r in records if r.family == fam and r.planner == cfg.reference
@@ -300,5 +306,11 @@ def run_harness(
             for fam in families:
                 for p in cfg.planners:
                     budgets[fam][p] = fixed
-        run_all([(spec, p, budgets[fam][p], cfg.mesh_check) for fam, spec in specs for p in others])
+        run_all(
+            [
+                (spec, p, budgets[fam][p], cfg.mesh_check, cfg.checker)
+                for fam, spec in specs
+                for p in others
+            ]
+        )
     return HarnessResult(cfg, records, budgets, time.perf_counter() - t0, notes)

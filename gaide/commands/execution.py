@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from core.errors import ConfigError, ExecutionError, TimingError
-from gaide.common import print_table, robot_and_spheres, write_json
+from gaide.common import add_checker_option, print_table, robot_and_spheres, write_json
 from gaide.scene_spec import HELP as SCENE_HELP
 from gaide.scene_spec import Scene, load_scene
 
@@ -42,6 +42,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         tm.add_argument(f"--max-{kind}", help=f"per-joint {kind} limits ({unit}), comma-separated")
     tm.add_argument("--no-shortcut", action="store_true", help="time the path as given")
     tm.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_checker_option(tm)
     tm.set_defaults(func=cmd_time)
 
     sim = sub.add_parser("simulate", help="track a timed trajectory in PyBullet, log the states")
@@ -58,6 +59,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     sim.add_argument("--settle", type=float, default=0.0, help="hold the goal this long (s)")
     sim.add_argument("--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS2 bags")
     sim.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_checker_option(sim)
     sim.set_defaults(func=cmd_simulate)
 
     cmp = sub.add_parser("compare", help="a planned trajectory against a controller log")
@@ -147,7 +149,7 @@ def cmd_time(args: argparse.Namespace) -> int:
         shortcut=not args.no_shortcut,
     )
     scene = _scene_for(args, raw, args.path, robot, spheres)
-    checker = make_checker(robot, spheres, scene.world)
+    checker = make_checker(robot, spheres, scene.world, backend=args.checker)
     traj = RuckigParameterizer(cfg).parameterize(raw["path"], checker)
     violations = limit_violations(traj)
     if violations:  # Ruckig keeps the limits by construction; this would be a bug
@@ -210,6 +212,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from execution.export import check_log_outputs, write_log
     from execution.plots import comparison_png
     from execution.simulate import SimCfg, simulate
+    from planning.checker import make_checker
 
     check_log_outputs(args.log)
     robot, spheres = robot_and_spheres(args.robot)
@@ -222,6 +225,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         cloud=scene.cloud,
         cfg=SimCfg(settle_s=args.settle),
         start_ns=time.time_ns(),
+        checker=make_checker(robot, spheres, scene.world, backend=args.checker),
     )
     report = {"trajectory": args.trajectory, "scene": scene.label, **result.summary()}
     extra: dict[Path, bytes] = {}
@@ -233,6 +237,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     rows = _per_joint_rows(result.log.names, result.rms_rad, result.max_rad)
     rows.append(("all joints", f"RMS {1e3 * result.rms_all_rad:7.3f} mrad"))
     rows.append(("contacts", f"{len(result.contacts)} ({result.status.value})"))
+    rows.append(
+        (
+            "sphere pre-check",
+            "every sample valid"
+            if not result.precheck_invalid
+            else f"{result.precheck_invalid} invalid samples from {result.precheck_first_s:.3f} s",
+        )
+    )
     rows.append(("written", ", ".join(str(p) for p in [*written, *extra]) or "nothing"))
     print_table(rows, f"simulated {args.trajectory} in scene {scene.label} ({result.wall_s:.1f} s)")
     verdict = {True: "the URDF meshes hit too", False: "hull only: the URDF meshes clear it"}

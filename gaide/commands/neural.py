@@ -14,7 +14,7 @@ import numpy as np
 from tqdm import tqdm
 
 from core.errors import ConfigError, PlanningError
-from gaide.common import print_table, robot_and_spheres, write_json
+from gaide.common import add_checker_option, print_table, robot_and_spheres, write_json
 from planning.families import FAMILIES, generate_problem, parse_families, split_seed
 
 
@@ -41,6 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     for old_flag in ("--oracle-budget", "--oracle-rescue"):
         gen.add_argument(old_flag, type=float, help=argparse.SUPPRESS)
     gen.add_argument("--workers", type=int, help="processes (default: all cores)")
+    add_checker_option(gen)
     gen.add_argument("--robot", help="robot config YAML (default: UR5)")
     gen.set_defaults(func=cmd_data_generate)
 
@@ -88,6 +89,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="weights for a neural planner, of its model (default: the shipped ones)",
     )
     pl.add_argument("--budget", type=float, default=5.0, help="seconds")
+    add_checker_option(pl)
     pl.add_argument("--robot", help="robot config YAML (default: UR5)")
     pl.add_argument("-o", "--output", required=True, help="path JSON")
     pl.set_defaults(func=cmd_plan)
@@ -107,6 +109,7 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
             iterations=args.oracle_iterations,
             shortcuts=args.oracle_shortcuts,
         ),
+        checker=args.checker,
     )
     if args.oracle_budget is not None or args.oracle_rescue is not None:
         print(
@@ -236,7 +239,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         goal = _configuration(args.goal, robot, "goal")
         source = args.scene
     planner = make_planner(args.planner, checkpoint=args.checkpoint)
-    checker = make_checker(robot, spheres, world)
+    checker = make_checker(robot, spheres, world, backend=args.checker)
     rng = np.random.default_rng(0 if args.seed is None else args.seed)
     result = planner.plan(checker, start, goal, budget_s=args.budget, rng=rng)
     if result.path is None:

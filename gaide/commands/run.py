@@ -42,11 +42,18 @@ def add_setting_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--target-pose", help="fixed target and its pose YAML (default: beside BAG)")
     p.add_argument("--start", help=f"start: {ENDPOINT_HELP}")
     p.add_argument("--goal", help=f"goal: {ENDPOINT_HELP}")
-    p.add_argument("--planner", help="planner name (default gaide-hybrid; rrtconnect, ...)")
+    p.add_argument(
+        "--planner",
+        help="planner name (default auto: gaide-hybrid when its weights fit the robot, else "
+        "rrtc; rrtconnect, ...)",
+    )
     p.add_argument("--checkpoint", help="weights for a neural planner")
     p.add_argument("--budget", type=float, help="planning seconds per attempt")
     p.add_argument("--attempts", type=int, help="planning attempts")
     p.add_argument("--seed", type=int, help="random seed")
+    p.add_argument(
+        "--checker", choices=["compiled", "numpy"], help="collision checker (default compiled)"
+    )
     p.add_argument("--timing-mode", choices=["blended", "exact"])
     p.add_argument("--rate", type=float, help="controller rate (Hz)")
     p.add_argument("--no-sim", action="store_true", help="skip the simulation")
@@ -68,6 +75,7 @@ FLAG_KEYS = {
     "budget": "planning.budget_s",
     "attempts": "planning.attempts",
     "seed": "planning.seed",
+    "checker": "planning.checker",
     "timing_mode": "timing.mode",
     "rate": "timing.rate_hz",
 }

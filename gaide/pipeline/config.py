@@ -15,9 +15,11 @@ from typing import Any, ClassVar
 from core.errors import ConfigError
 from execution.timing_cfg import TimingCfg, TimingMode
 from gaide.pipeline import checks
+from planning.checker import CHECKERS
 from planning.registry import CLASSICAL, COMPILED, HYBRID, NEURAL
 
-PLANNERS = COMPILED + CLASSICAL + NEURAL + HYBRID
+# auto: gaide-hybrid when its weights fit the robot, else the compiled RRT-Connect.
+PLANNERS = ("auto", *COMPILED, *CLASSICAL, *NEURAL, *HYBRID)
 EXPORT_FORMATS = ("csv", "json", "bag", "ros2")
 
 
@@ -112,6 +114,7 @@ class PlanningCfg:
     ik_restarts: int
     world_voxel: float  # m
     torch_threads: int  # CPU threads for the network while planning; 0: torch's default
+    checker: str  # collision checker backend: compiled | numpy
 
     def __post_init__(self) -> None:
         k = self.SECTION
@@ -119,7 +122,7 @@ class PlanningCfg:
         _set(self, "goal", checks.text(self.goal, f"{k}.goal"))
         checks.choice(self.planner, f"{k}.planner", PLANNERS)
         _set(self, "checkpoint", checks.text(self.checkpoint, f"{k}.checkpoint"))
-        if self.checkpoint is not None and self.planner not in NEURAL + HYBRID:
+        if self.checkpoint is not None and self.planner not in ("auto", *NEURAL, *HYBRID):
             raise ConfigError(
                 f"{k}.checkpoint is for the neural planners {list(NEURAL + HYBRID)}, not "
                 f"'{self.planner}'"
@@ -135,6 +138,7 @@ class PlanningCfg:
         checks.integer(self.seed, f"{k}.seed", lo=0)
         checks.integer(self.ik_restarts, f"{k}.ik_restarts", lo=1, hi=10_000)
         checks.integer(self.torch_threads, f"{k}.torch_threads", lo=0, hi=256)
+        checks.choice(self.checker, f"{k}.checker", CHECKERS)
         _set(
             self,
             "world_voxel",

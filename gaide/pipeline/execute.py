@@ -86,6 +86,7 @@ def simulation_stage(
         cloud=cloud if len(cloud) else None,
         cfg=SimCfg(settle_s=s.settle_s, voxel_m=s.voxel_m),
         start_ns=time.time_ns(),
+        checker=planned.checker,
     )
     rms, worst = result.rms_all_rad, float(result.max_rad.max())
     record.figures.update(
@@ -94,6 +95,7 @@ def simulation_stage(
         tracking_max_rad=worst,
         contacts=len(result.contacts),
         cloud_points_simulated=len(cloud),
+        precheck_invalid_samples=result.precheck_invalid,
         sim_wall_s=round(result.wall_s, 3),
     )
     if rms > s.max_tracking_rms_rad:

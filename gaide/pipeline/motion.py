@@ -41,12 +41,13 @@ class Planned:
         return self.result.path
 
 
-def make_run_planner(p: PlanningCfg) -> Planner:
-    """The configured planner: a registry name, a neural one with the given weights, on
-    the configured torch threads."""
-    from planning.registry import make_planner
+def make_run_planner(name: str, p: PlanningCfg) -> Planner:
+    """The planner ``name`` (the setup stage's resolution of ``p.planner``): a registry
+    name, a neural one with the given weights, on the configured torch threads."""
+    from planning.registry import is_neural, make_planner
 
-    return make_planner(p.planner, checkpoint=p.checkpoint, threads=p.torch_threads)
+    checkpoint = p.checkpoint if is_neural(name) else None
+    return make_planner(name, checkpoint=checkpoint, threads=p.torch_threads)
 
 
 def _attempts(
@@ -85,29 +86,32 @@ def planning_stage(
 ) -> Planned:
     p = cfg.planning
     world = CloudWorld(sensed.cloud.points, voxel=p.world_voxel)
-    checker = make_checker(setup.robot, setup.spheres, world)
+    checker = make_checker(setup.robot, setup.spheres, world, backend=p.checker)
     rng = np.random.default_rng(p.seed)
     reference = reference_configuration(setup.robot, sensed.recorded)
     kw: dict[str, Any] = {"recorded": sensed.recorded, "rng": rng, "restarts": p.ik_restarts}
     start = _endpoint(checker, resolve(setup.start, checker, reference=reference, **kw))
     goal = _endpoint(checker, resolve(setup.goal, checker, reference=start.q, **kw))
-    planner = make_run_planner(p)
+    planner = make_run_planner(setup.planner, p)
     results = _attempts(planner, checker, start.q, goal.q, p)
     total = sum(r.time_s for r in results)
     res = results[-1]
     record.figures.update(
-        planner=p.planner, attempts=len(results), planning_s=round(total, 4), budget_s=p.budget_s
+        planner=setup.planner,
+        attempts=len(results),
+        planning_s=round(total, 4),
+        budget_s=p.budget_s,
     )
     if not res.success or res.path is None:
         raise PlanningError(
-            f"{p.planner} found no path from start '{start.endpoint.text}' to goal "
+            f"{setup.planner} found no path from start '{start.endpoint.text}' to goal "
             f"'{goal.endpoint.text}' in {len(results)} attempt(s) of {p.budget_s:g} s: "
             f"{res.status.value}: {res.detail}; raise planning.budget_s or planning.attempts, "
             "or choose another goal"
         )
     bad = checker.first_invalid_edge(res.path)
     if bad is not None:  # planners check their edges; this guards the pipeline's promise
-        raise PlanningError(f"{p.planner} returned a path whose edge {bad} collides")
+        raise PlanningError(f"{setup.planner} returned a path whose edge {bad} collides")
     planned = Planned(checker, start, goal, res, len(results), total)
     picture = figures.path_png(
         checker,
@@ -116,7 +120,7 @@ def planning_stage(
         sensed.cloud.colors,
         eye=camera.T_base_cam[:3, 3],
         poses=cfg.report.poses,
-        title=f"{p.planner}: {len(res.path)} waypoints, {res.cost:.2f} rad",
+        title=f"{setup.planner}: {len(res.path)} waypoints, {res.cost:.2f} rad",
     )
     plan = {
         "planner": res.planner,

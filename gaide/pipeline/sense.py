@@ -8,6 +8,7 @@ stages need.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,6 +31,8 @@ from planning.sphere_model import SphereModel
 
 Array = npt.NDArray[np.float64]
 
+log = logging.getLogger(__name__)
+
 
 @dataclass(frozen=True)
 class Setup:
@@ -37,6 +40,7 @@ class Setup:
     spheres: SphereModel
     start: Endpoint
     goal: Endpoint
+    planner: str  # the planner the run uses ("auto" resolved)
 
 
 @dataclass(frozen=True)
@@ -66,20 +70,45 @@ def setup_stage(cfg: RunCfg, record: StageRecord) -> Setup:
     robot, spheres = robot_and_spheres(cfg.robot)
     start = parse_endpoint(cfg.planning.start, robot, "start")
     goal = parse_endpoint(cfg.planning.goal, robot, "goal")
-    _check_weights(cfg)
+    planner = _resolve_planner(cfg, robot)
+    _check_weights(cfg, planner)
     record.figures.update(
         robot=str(robot.config.urdf.name),
         dof=robot.dof,
         spheres=len(spheres),
-        planner=cfg.planning.planner,
+        planner=planner,
     )
-    return Setup(robot, spheres, start, goal)
+    if planner != cfg.planning.planner:
+        record.figures["planner_auto"] = (
+            "GAIDE's weights fit this robot" if planner == AUTO_NEURAL else _NO_WEIGHTS
+        )
+    return Setup(robot, spheres, start, goal, planner)
 
 
-def _check_weights(cfg: RunCfg) -> None:
+AUTO_NEURAL = "gaide-hybrid"
+_NO_WEIGHTS = "no GAIDE weights fit this robot: the compiled RRT-Connect plans"
+
+
+def _resolve_planner(cfg: RunCfg, robot: RobotModel) -> str:
+    """``auto``: gaide-hybrid when its weights (given or shipped) load for this robot, else
+    rrtc; any other name as given."""
+    if cfg.planning.planner != "auto":
+        return cfg.planning.planner
+    from core.errors import GaideError
+    from planning.neural.checkpoint import load_checkpoint, shipped_checkpoint
+
+    weights = cfg.planning.checkpoint or shipped_checkpoint("gaide")
+    try:
+        load_checkpoint(weights, robot, kind="gaide")
+    except GaideError as err:
+        log.warning("planner auto: %s (%s)", _NO_WEIGHTS, err)
+        return "rrtc"
+    return AUTO_NEURAL
+
+
+def _check_weights(cfg: RunCfg, name: str) -> None:
     from planning.registry import HYBRID, NEURAL
 
-    name = cfg.planning.planner
     if name not in NEURAL + HYBRID:
         return
     if cfg.planning.checkpoint is not None:

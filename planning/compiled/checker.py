@@ -37,6 +37,12 @@ class CompiledChecker(SphereCollisionChecker):
         validity.configs_valid(*self._tables, Q, self.margin, out)
         return out
 
+    def sphere_centers(self, Q: Array) -> Array:
+        Q = self._batch(Q)
+        out = np.empty((Q.shape[0], len(self.radii), 3))
+        validity.sphere_centres(*self._tables, Q, out)
+        return out
+
     def config_valid_one(self, q: Array) -> bool:
         """Validity of one configuration (dof,): the cheapest call, for per-state callbacks.
         The caller guarantees a finite, contiguous float64 (dof,) array."""

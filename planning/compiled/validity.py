@@ -80,7 +80,7 @@ def self_overlap(I: IntArray, F: FloatArray, X: FloatArray, o: Off) -> bool:
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def config_ok(
     I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, margin: float
 ) -> bool:
@@ -98,7 +98,7 @@ def config_ok(
     return not self_overlap(I, F, X, o)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def sample_values(
     I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, margin: float, row: int
 ) -> bool:
@@ -283,3 +283,17 @@ def edge_step_counts(I, F, Q0, Q1, resolution, out):  # type: ignore[no-untyped-
     X = np.empty(o.xsize)
     for e in range(Q0.shape[0]):
         out[e] = edge_steps(F, X, o, Q0[e], Q1[e], resolution)
+
+
+@njit(cache=True)
+def sphere_centres(I, F, field, Q, out):  # type: ignore[no-untyped-def]
+    """``out[b, s]``: world centre of sphere s at configuration ``Q[b]`` (B, dof)."""
+    o = offsets(I)
+    X = np.empty(o.xsize)
+    for b in range(Q.shape[0]):
+        for j in range(o.dof):
+            X[o.xq + j] = Q[b, j]
+        place_all(I, F, X, o)
+        for s in range(o.S):
+            for a in range(3):
+                out[b, s, a] = X[o.xc + 3 * s + a]

@@ -54,6 +54,7 @@ class DataCfg:
     max_step: float = 0.3  # rad, Euclidean joint step of the stored paths
     scene_points: int = 2048
     oracle: OracleCfg = field(default_factory=OracleCfg)  # budgeted by work, not time
+    checker: str = "compiled"  # the oracle's collision checker backend
 
     def check(self) -> None:
         bad = [f for f in self.families if f not in FAMILIES]
@@ -86,7 +87,7 @@ def one_path(
         problem = generate_problem(fam, seed, robot, spheres)
     except GaideError as err:
         return f"{fam} seed {seed}: {err}"
-    checker = make_checker(robot, spheres, problem.world)
+    checker = make_checker(robot, spheres, problem.world, backend=cfg.checker)
     oracle = replace(cfg.oracle, max_step=cfg.max_step)  # labels at the data's step
     res = oracle_path(checker, problem.start, problem.goal, rng, oracle)
     if res.path is None:

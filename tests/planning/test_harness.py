@@ -50,7 +50,7 @@ def test_a_planner_returning_a_colliding_path_counts_as_a_failure(
 
     harness._init_worker(None)
     monkeypatch.setattr(harness, "make_planner", lambda name, **_: Liar())
-    rec = harness._run((("box", split_seed("test", 0)), "liar", 1.0, False))
+    rec = harness._run((("box", split_seed("test", 0)), "liar", 1.0, False, "compiled"))
     assert rec.status == "bad_path" and not rec.success and rec.cost is None
     assert "collides" in rec.detail
 
