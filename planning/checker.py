@@ -18,6 +18,10 @@ from planning.world import World
 
 CHECKERS = ("compiled", "numpy")
 DEFAULT_CHECKER = "compiled"
+# m beyond the margin that endpoints chosen by IK keep: a configuration at the margin itself
+# is valid, but no motion into or out of it can be certified to keep the margin (the
+# displacement bounds cannot prove that the sphere at the margin moves away).
+ENDPOINT_SLACK = 0.002
 
 
 def check_backend(backend: str) -> str:
@@ -50,4 +54,18 @@ def make_checker(
         margin=margin,
         resolution=resolution,
         world_ignored_links=world_ignored_links,
+    )
+
+
+def endpoint_checker(checker: CollisionChecker) -> CollisionChecker:
+    """A checker like ``checker`` (robot, world, backend) whose margin is
+    :data:`ENDPOINT_SLACK` larger: for choosing endpoints (IK solutions) that certified
+    motions can leave and reach."""
+    return make_checker(
+        checker.robot,
+        checker.spheres,
+        checker.world,
+        backend=checker.backend,
+        margin=checker.margin + ENDPOINT_SLACK,
+        resolution=checker.resolution,
     )

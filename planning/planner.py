@@ -69,6 +69,8 @@ def check_endpoints(
         (PlanStatus.START_INVALID, start, "start"),
         (PlanStatus.GOAL_INVALID, goal, "goal"),
     ):
+        if checker.config_valid_one(np.ascontiguousarray(q, dtype=float)):
+            continue  # the diagnosis (in numpy) is for invalid ones
         diag = checker.diagnose(q)
         if not diag.valid:
             return status, f"{what}: {diag}"

@@ -22,6 +22,7 @@ import numpy.typing as npt
 
 from core.errors import ConfigError, PlanningError
 from core.transforms import from_xyz_quat
+from planning.checker import endpoint_checker
 from planning.collision import CollisionChecker
 from planning.ik import IKCfg, solve_ik
 from planning.robot_model import RobotModel
@@ -151,9 +152,13 @@ def resolve(
     T_base[:3, 3] = ep.xyz
     T = robot.T_world_base @ T_base
     cfg = IKCfg(restarts=restarts)
-    sols = solve_ik(robot, T, rng, cfg=cfg, checker=checker, seed=reference)
-    if sols:
-        return Resolved(ep, sols[0], f"IK, nearest of {len(sols)} collision-free solutions")
+    # Solutions with a little room beyond the margin first (certified motions can reach
+    # them), then any collision-free one.
+    for check, room in ((endpoint_checker(checker), "with room beyond the margin"), (checker, "")):
+        sols = solve_ik(robot, T, rng, cfg=cfg, checker=check, seed=reference)
+        if sols:
+            how = f"IK, nearest of {len(sols)} collision-free solutions {room}".rstrip()
+            return Resolved(ep, sols[0], how)
     free = solve_ik(robot, T, rng, cfg=IKCfg(restarts=restarts, max_solutions=1), seed=reference)
     if free:
         why = f"it is reachable, but the solutions found collide ({checker.diagnose(free[0])})"

@@ -241,3 +241,18 @@ def test_joints_no_checker_can_represent_are_refused_by_name(
     (tmp_path / "chain.yaml").write_text("urdf: chain.urdf\nend_effector: tip\n")
     with pytest.raises(RobotModelError, match=f"joint 'tilt' is {kind}"):
         load_robot(tmp_path / "chain.yaml")
+
+
+def test_the_cli_refuses_an_unsupported_joint_in_one_line(tmp_path: Path) -> None:
+    from tests.conftest import run_cli
+
+    (tmp_path / "chain.urdf").write_text(
+        CHAIN.replace('name="yaw" type="revolute"', 'name="yaw" type="floating"')
+    )
+    (tmp_path / "chain.yaml").write_text("urdf: chain.urdf\nend_effector: tip\n")
+    out = run_cli("plan", "--family", "tabletop", "--robot", str(tmp_path / "chain.yaml"),
+                  "--planner", "rrtc", "-o", str(tmp_path / "p.json"))  # fmt: skip
+    assert out.returncode == 6, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "joint 'yaw' is floating" in lines[0]
+    assert not (tmp_path / "p.json").exists()
