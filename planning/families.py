@@ -45,6 +45,9 @@ SEED_RANGES = {
     "test": (2_000_000, 2_100_000),
 }
 MIN_EE_DISTANCE = 0.05  # m
+# Problem categories by the hand's clearance at each end (tight: under TIGHT_BELOW).
+CATEGORIES = ("free2free", "free2tight", "tight2free", "tight2tight")
+TIGHT_BELOW = 0.04  # m
 
 
 def parse_families(text: str) -> list[str]:
@@ -211,7 +214,9 @@ class _Ctx:
         return sols[int(self.rng.integers(len(sols)))] if sols else None
 
 
-Target = Callable[[], Array]  # draws a candidate end-effector pose
+# Draws a candidate end-effector pose with the generator it is given (the scene's, or a
+# pair's own when one scene serves several start/goal pairs).
+Target = Callable[[np.random.Generator], Array]
 
 
 def _clutter(rng: np.random.Generator, n: int, keep_clear: list[Array]) -> list[Primitive]:
@@ -242,8 +247,8 @@ def _clutter(rng: np.random.Generator, n: int, keep_clear: list[Array]) -> list[
     return out
 
 
-def _table_target(rng: np.random.Generator) -> Target:
-    def draw() -> Array:
+def _table_target() -> Target:
+    def draw(rng: np.random.Generator) -> Array:
         r, a = rng.uniform(0.35, 0.7), rng.uniform(-2.2, 2.2)
         return down_pose(
             [r * np.cos(a), r * np.sin(a), TABLE_TOP + rng.uniform(0.06, 0.22)],
@@ -254,14 +259,13 @@ def _table_target(rng: np.random.Generator) -> Target:
 
 
 def _in_container(
-    rng: np.random.Generator,
     centre: Array,
     yaw: float,
     inner: tuple[float, float],
     floor: float,
     height: float,
 ) -> Target:
-    def draw() -> Array:
+    def draw(rng: np.random.Generator) -> Array:
         u = rng.uniform(-0.5, 0.5, 2) * (np.asarray(inner) - 0.12).clip(0.0)
         z = TABLE_TOP + floor + rng.uniform(0.07, max(0.08, height * 0.6))
         return down_pose(
@@ -273,7 +277,6 @@ def _in_container(
 
 
 def _in_shelf(
-    rng: np.random.Generator,
     shelf: Shelf,
     level: int,
     depth: tuple[float, float],
@@ -281,7 +284,7 @@ def _in_shelf(
 ) -> Target:
     lo, hi = shelf.boards[level], shelf.boards[level + 1]
 
-    def draw() -> Array:
+    def draw(rng: np.random.Generator) -> Array:
         half = shelf.width / 2 - 0.12
         y = rng.uniform(*(y_range or (-half, half)))
         x = shelf.depth * rng.uniform(*depth)
@@ -326,7 +329,7 @@ def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Targ
     prims: list[Primitive] = [table()]
     if family == "tabletop":
         prims += _clutter(rng, int(rng.integers(4, 9)), [])
-        return prims, _table_target(rng), _table_target(rng)
+        return prims, _table_target(), _table_target()
     if family == "box":
         r, a = rng.uniform(0.45, 0.6), rng.uniform(-1.2, 1.2)
         centre = np.array([r * np.cos(a), r * np.sin(a), 0.0])
@@ -334,8 +337,8 @@ def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Targ
         height, yaw = float(rng.uniform(0.12, 0.22)), float(a + rng.uniform(-0.3, 0.3))
         prims += open_box(centre, yaw, inner, height, 0.015)
         prims += _clutter(rng, int(rng.integers(1, 4)), [centre])
-        inside = _in_container(rng, centre, yaw, inner, 0.015, height)
-        outside = _table_target(rng)
+        inside = _in_container(centre, yaw, inner, 0.015, height)
+        outside = _table_target()
         return (prims, inside, outside) if rng.random() < 0.5 else (prims, outside, inside)
     if family == "bins":
         n = int(rng.integers(2, 4))
@@ -347,7 +350,7 @@ def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Targ
             inner = (float(rng.uniform(0.22, 0.3)), float(rng.uniform(0.22, 0.3)))
             height = float(rng.uniform(0.08, 0.15))
             prims += open_box(centre, float(a), inner, height, 0.012)
-            bins.append(_in_container(rng, centre, float(a), inner, 0.012, height))
+            bins.append(_in_container(centre, float(a), inner, 0.012, height))
         i, j = rng.choice(n, 2, replace=False)
         return prims, bins[i], bins[j]
     if family in ("shelf_i", "shelf_ii"):
@@ -357,13 +360,13 @@ def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Targ
         prims += shelf.parts()
         if family == "shelf_i":
             prims += _clutter(rng, int(rng.integers(0, 3)), [shelf.front])
-            level = _in_shelf(rng, shelf, int(rng.integers(0, 2)), (0.15, 0.45))
+            level = _in_shelf(shelf, int(rng.integers(0, 2)), (0.15, 0.45))
             return (
-                (prims, _table_target(rng), level)
+                (prims, _table_target(), level)
                 if rng.random() < 0.5
-                else (prims, level, _table_target(rng))
+                else (prims, level, _table_target())
             )
-        low, high = _in_shelf(rng, shelf, 0, (0.15, 0.45)), _in_shelf(rng, shelf, 1, (0.15, 0.45))
+        low, high = _in_shelf(shelf, 0, (0.15, 0.45)), _in_shelf(shelf, 1, (0.15, 0.45))
         return (prims, low, high) if rng.random() < 0.5 else (prims, high, low)
     if family == "shelf_iii":
         shelf = _shelf(
@@ -377,8 +380,8 @@ def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Targ
         )
         prims += shelf.parts()
         slot_half = shelf.slots[1] - 0.1
-        deep = _in_shelf(rng, shelf, 1, (0.3, 0.45), (-slot_half, slot_half))
-        other = _in_shelf(rng, shelf, 0, (0.15, 0.4)) if rng.random() < 0.6 else _table_target(rng)
+        deep = _in_shelf(shelf, 1, (0.3, 0.45), (-slot_half, slot_half))
+        other = _in_shelf(shelf, 0, (0.15, 0.4)) if rng.random() < 0.6 else _table_target()
         return (prims, other, deep) if rng.random() < 0.5 else (prims, deep, other)
     raise PlanningError(f"unknown family '{family}'; valid: {list(FAMILIES)}")
 
@@ -389,12 +392,22 @@ def generate_problem(
     robot: RobotModel,
     spheres: SphereModel,
     *,
+    category: str | None = None,
     scene_attempts: int = 20,
     target_attempts: int = 12,
 ) -> Problem:
-    """The problem of ``family`` for ``seed``: same inputs, same problem, on any machine."""
+    """The problem of ``family`` for ``seed``: same inputs, same problem, on any machine.
+
+    Without ``category``, the family's own start and goal targets decide how tight the ends
+    are (the legacy test split). With one of :data:`CATEGORIES`, each end is made tight (the
+    family's targets: in the box, bin or shelf, among the clutter) or free (open space above
+    the table), checked on the hand's clearance. The scene comes from (family, seed) alone
+    and each category's ends from a generator of their own, so the four categories of one
+    seed share a scene (the training data reuses it for four start/goal pairs)."""
     if family not in FAMILIES:
         raise PlanningError(f"unknown family '{family}'; valid: {list(FAMILIES)}")
+    if category is not None:
+        return _in_category(family, seed, robot, spheres, category, scene_attempts)
     rng = np.random.default_rng([FAMILIES.index(family), seed])
     for _ in range(scene_attempts):
         prims, start_target, goal_target = _scene(family, rng)
@@ -406,7 +419,7 @@ def generate_problem(
             continue
         p_start = robot.frame_pose(start)[:3, 3]
         for _ in range(target_attempts):
-            T_goal = goal_target()
+            T_goal = goal_target(rng)
             if np.linalg.norm(T_goal[:3, 3] - p_start) < MIN_EE_DISTANCE:
                 continue
             goal = ctx.ik(T_goal)
@@ -420,9 +433,87 @@ def generate_problem(
                 world=world,
                 start=start,
                 goal=goal,
-                difficulty=difficulty(float(clear[0]), float(clear[1])),
+                difficulty=difficulty(float(clear[0]), float(clear[1]), TIGHT_BELOW),
             )
     raise PlanningError(f"{family} seed {seed}: no valid start and goal in {scene_attempts} scenes")
+
+
+def _free_target() -> Target:
+    """Open space: a top-down pose 25-60 cm above the table, 30-65 cm from the base."""
+
+    def draw(rng: np.random.Generator) -> Array:
+        r, a = rng.uniform(0.3, 0.65), rng.uniform(-np.pi, np.pi)
+        z = TABLE_TOP + rng.uniform(0.25, 0.6)
+        return down_pose([r * np.cos(a), r * np.sin(a), z], rng.uniform(-np.pi, np.pi))
+
+    return draw
+
+
+def _in_category(
+    family: str,
+    seed: int,
+    robot: RobotModel,
+    spheres: SphereModel,
+    category: str,
+    scene_attempts: int,
+    attempts: int = 40,
+) -> Problem:
+    if category not in CATEGORIES:
+        raise PlanningError(f"unknown category '{category}'; valid: {list(CATEGORIES)}")
+    want = category.split("2")
+    hand = _hand_links(robot)
+    scene_rng = np.random.default_rng([FAMILIES.index(family), seed])
+    for attempt in range(scene_attempts):
+        prims, target_a, target_b = _scene(family, scene_rng)
+        world = PrimitiveWorld(prims)
+        rng = np.random.default_rng(
+            [FAMILIES.index(family), seed, attempt, 1 + CATEGORIES.index(category)]
+        )
+        ctx = _Ctx(robot, endpoint_checker(make_checker(robot, spheres, world)), rng)
+        targets = {"tight": (target_a, target_b), "free": (_free_target(),)}
+        start = _end_of_kind(ctx, targets[want[0]], want[0] == "tight", hand, attempts)
+        if start is None:
+            continue
+        far_from = robot.frame_pose(start)[:3, 3]
+        goal = _end_of_kind(ctx, targets[want[1]], want[1] == "tight", hand, attempts, far_from)
+        if goal is None:
+            continue
+        return Problem(
+            name=f"{family}-{seed}-{category}",
+            family=family,
+            seed=seed,
+            world=world,
+            start=start,
+            goal=goal,
+            difficulty=category,
+        )
+    raise PlanningError(
+        f"{family} seed {seed}: no {category} start and goal in {scene_attempts} scenes"
+    )
+
+
+def _end_of_kind(
+    ctx: _Ctx,
+    targets: tuple[Target, ...],
+    tight: bool,
+    hand: tuple[str, ...],
+    attempts: int,
+    far_from: Array | None = None,
+) -> Array | None:
+    """A collision-free IK solution for one of ``targets`` whose hand clearance is under
+    TIGHT_BELOW (``tight``) or not, and whose end effector is MIN_EE_DISTANCE from
+    ``far_from``; None after ``attempts`` targets."""
+    for _ in range(attempts):
+        T = targets[int(ctx.rng.integers(len(targets)))](ctx.rng)
+        if far_from is not None and np.linalg.norm(T[:3, 3] - far_from) < MIN_EE_DISTANCE:
+            continue
+        q = ctx.ik(T)
+        if q is None:
+            continue
+        clear = float(ctx.checker.world_clearance(q[None], links=hand)[0])
+        if (clear < TIGHT_BELOW) == tight:
+            return q
+    return None
 
 
 def _hand_links(robot: RobotModel) -> tuple[str, ...]:
@@ -436,7 +527,7 @@ def _hand_links(robot: RobotModel) -> tuple[str, ...]:
 
 def _solve(ctx: _Ctx, target: Target, attempts: int) -> Array | None:
     for _ in range(attempts):
-        q = ctx.ik(target())
+        q = ctx.ik(target(ctx.rng))
         if q is not None:
             return q
     return None

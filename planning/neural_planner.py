@@ -69,8 +69,8 @@ class NeuralPlanner:
     """``sampler`` proposes steps (or, given as a checkpoint path, the checkpoint's model,
     loaded for the checker's robot on first use); ``mode`` 'paper' or 'hybrid';
     ``rollouts`` proposals per forward pass; ``max_steps`` of the bidirectional loop per
-    (re)plan and ``replans`` rounds of replanning failing segments; ``restart_s`` the first
-    slice of the hybrid fallback's restarted RRT-Connect (see :meth:`_Run.connect`);
+    (re)plan and ``replans`` rounds of replanning failing segments; ``restart_iterations`` the
+    first slice of the hybrid fallback's restarted RRT-Connect (see :meth:`_Run.connect`);
     ``threads`` torch's intra-op threads while planning (0: torch's setting, untouched). One
     is the default: a step's batch is small, and after Open3D or OpenCV have run in the
     process, torch's default thread pool made each forward pass about 20x slower (measured);
@@ -91,7 +91,7 @@ class NeuralPlanner:
         rollouts: int = 8,
         max_steps: int | None = None,
         replans: int | None = None,
-        restart_s: float = 0.5,
+        restart_iterations: int = 2000,
         threads: int = 1,
         kind: str | None = None,
     ) -> None:
@@ -101,15 +101,16 @@ class NeuralPlanner:
             max_steps = 80 if mode == "paper" else 4
         if replans is None:
             replans = 3 if mode == "paper" else 1
-        if rollouts < 1 or max_steps < 1 or replans < 0 or not restart_s > 0 or threads < 0:
+        if min(rollouts, max_steps, restart_iterations) < 1 or replans < 0 or threads < 0:
             raise PlanningError(
-                "need rollouts >= 1, max_steps >= 1, replans >= 0, restart_s > 0, threads >= 0; "
-                f"got {rollouts}, {max_steps}, {replans}, {restart_s}, {threads}"
+                "need rollouts >= 1, max_steps >= 1, replans >= 0, restart_iterations >= 1, "
+                f"threads >= 0; got {rollouts}, {max_steps}, {replans}, {restart_iterations}, "
+                f"{threads}"
             )
         self.name, self.mode = name, mode
         self._sampler = sampler
         self.rollouts, self.max_steps, self.replans = rollouts, max_steps, replans
-        self.restart_s, self.threads = restart_s, threads
+        self.restart_iterations, self.threads = restart_iterations, threads
         self.kind = kind
 
     def plan(
@@ -310,31 +311,34 @@ class _Run:
         time left: the path and the indices of the start and goal it joins; None if it gave
         up early.
 
-        RRT-Connect's time to solve a shelf problem is heavy-tailed (one seed 0.2 s, another
+        RRT-Connect's work to solve a shelf problem is heavy-tailed (one seed 0.2 s, another
         over 5 s on the same problem), so it runs in slices of growing length
-        (``restart_s``, then 1.5x each time), each a fresh pair of trees with a new seed. Only
-        the first slice has every root; the restarts root the first start and the last goal
-        alone: where the first slice failed, the other roots are where the network got stuck
-        (on one shelf problem, roots there let 1 seed in 8 through; the bare ends, 7)."""
+        (``restart_iterations``, then 1.5x each time; iterations, so the schedule is the same
+        on a loaded machine), each a fresh pair of trees with a new seed, until the budget
+        ends. Only the first slice has every root; the restarts root the first start and the
+        last goal alone: where the first slice failed, the other roots are where the network
+        got stuck (on one shelf problem, roots there let 1 seed in 8 through; the bare ends,
+        7)."""
         from planning.rrtc import CompiledRRTConnect, RRTCCfg
 
-        rrtc = CompiledRRTConnect(RRTCCfg(simplify=False))
         self.stats["fallback_segments"] += 1
-        slice_s = self.p.restart_s
+        iterations = self.p.restart_iterations
         roots = (starts, goals)
         while True:
             left = self.deadline - time.perf_counter()
             if left <= 0.01:
                 raise _Timeout
-            res = rrtc.plan_between(self.checker, *roots, budget_s=min(slice_s, left), rng=self.rng)
+            rrtc = CompiledRRTConnect(RRTCCfg(simplify=False, max_iterations=iterations))
+            # the iterations bound the slice; the budget only ends the plan
+            res = rrtc.plan_between(self.checker, *roots, budget_s=min(left, 1e9), rng=self.rng)
             if res.path is not None:
                 if roots[0] is starts:
                     return res.path, int(res.stats["start_index"]), int(res.stats["goal_index"])
                 return res.path, 0, len(goals) - 1
-            if res.status is not PlanStatus.TIMEOUT:
-                return None
+            if res.status is PlanStatus.TIMEOUT:
+                raise _Timeout
             self.stats["fallback_restarts"] += 1
-            slice_s *= 1.5
+            iterations = max(iterations + 1, int(iterations * 1.5))
             roots = (starts[:1], goals[-1:])
 
     def fallback_gap(self) -> Array | None:

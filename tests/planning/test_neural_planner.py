@@ -150,8 +150,8 @@ def test_bad_endpoints_are_a_status_and_bad_settings_an_error(
         NeuralPlanner("x", Straight(), mode="fast")
     with pytest.raises(PlanningError, match="budget_s"):
         planner.plan(checker, box.start, box.goal, budget_s=0.0, rng=rng)
-    with pytest.raises(PlanningError, match="restart_s > 0"):
-        NeuralPlanner("x", Straight(), mode="hybrid", restart_s=0.0)
+    with pytest.raises(PlanningError, match="restart_iterations >= 1"):
+        NeuralPlanner("x", Straight(), mode="hybrid", restart_iterations=0)
 
 
 def test_the_fallback_restarts_rrt_connect_in_growing_slices(
@@ -159,24 +159,26 @@ def test_the_fallback_restarts_rrt_connect_in_growing_slices(
 ) -> None:
     from planning.neural_planner import _Run
 
-    checker = _checker(robot, spheres, box)
-    planner = NeuralPlanner("stuck-hybrid", Stuck(), mode="hybrid", restart_s=1e-4)
+    shelf = generate_problem("shelf_iii", split_seed("test", 0), robot, spheres)
+    checker = _checker(robot, spheres, shelf)
+    planner = NeuralPlanner("stuck-hybrid", Stuck(), mode="hybrid", restart_iterations=1)
     run = _Run(planner, Stuck(), checker, float("inf"), np.random.default_rng(0))
-    # A 0.1 ms slice is too short for OMPL's set-up: the first slices all time out.
-    res = run.connect(box.start[None], box.goal[None])
+    # One iteration does not reach into the shelf's slot: the first slices fail, and the
+    # slices grow (by iterations, not seconds) until one does.
+    res = run.connect(shelf.start[None], shelf.goal[None])
     assert res is not None
     path, i, j = res
     assert (i, j) == (0, 0) and run.stats["fallback_restarts"] >= 1
-    assert np.array_equal(path[0], box.start) and np.array_equal(path[-1], box.goal)
+    assert np.array_equal(path[0], shelf.start) and np.array_equal(path[-1], shelf.goal)
     assert checker.edges_valid(path[:-1], path[1:]).all()
     # restarts root the first start and the last goal alone, whatever the first slice had
     hand = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.1])
-    starts = np.stack([box.start, box.start + hand])
-    goals = np.stack([box.goal + hand, box.goal])
+    starts = np.stack([shelf.start, shelf.start + hand])
+    goals = np.stack([shelf.goal + hand, shelf.goal])
     assert checker.config_valid(np.concatenate([starts, goals])).all()
     res = run.connect(starts, goals)
     assert res is not None and res[1:] == (0, 1)
-    assert np.array_equal(res[0][0], box.start) and np.array_equal(res[0][-1], box.goal)
+    assert np.array_equal(res[0][0], shelf.start) and np.array_equal(res[0][-1], shelf.goal)
 
 
 def test_a_tiny_budget_times_out_saying_what_was_tried(
