@@ -63,6 +63,21 @@ def parse_families(text: str) -> list[str]:
     return names
 
 
+def parse_categories(text: str) -> list[str]:
+    """'all' or a comma-separated list of categories (PlanningError listing valid ones)."""
+    names = (
+        list(CATEGORIES)
+        if text.strip() == "all"
+        else [t.strip() for t in text.split(",") if t.strip()]
+    )
+    bad = [n for n in names if n not in CATEGORIES]
+    if bad or not names or len(set(names)) != len(names):
+        raise PlanningError(
+            f"categories must be distinct, among {list(CATEGORIES)} or 'all'; got {text!r}"
+        )
+    return names
+
+
 def split_seed(split: str, index: int) -> int:
     if split not in SEED_RANGES:
         raise PlanningError(f"unknown split '{split}'; valid: {list(SEED_RANGES)}")

@@ -25,7 +25,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     gen.add_argument("--families", default="all", help="comma-separated families or 'all'")
     gen.add_argument("--paths", type=int, required=True, help="number of path indices")
     gen.add_argument("--out", required=True, help="data directory (resumed if it exists)")
-    gen.add_argument("--shard-size", type=int, default=50, help="paths per shard file")
+    gen.add_argument("--shard-size", type=int, help="paths per shard file (default 48)")
+    gen.add_argument(
+        "--categories",
+        default="all",
+        help="problem categories cycled over each scene's paths: 'all' or a comma-separated "
+        "list of free2free, free2tight, tight2free, tight2tight",
+    )
+    gen.add_argument(
+        "--ray",
+        metavar="auto|ADDRESS",
+        help="make the shards as Ray tasks on this cluster (auto: the running one, or a "
+        "local instance); default: local processes",
+    )
     gen.add_argument("--max-step", type=float, default=0.3, help="path step (rad)")
     gen.add_argument(
         "--oracle-runs", type=int, default=8, help="compiled RRT-Connect runs per path"
@@ -96,13 +108,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_data_generate(args: argparse.Namespace) -> int:
-    from planning.neural.data import DataCfg, generate
+    from planning.families import parse_categories
+    from planning.neural.data import DataCfg
+    from planning.neural.data_backends import generate
     from planning.oracle import OracleCfg
 
     cfg = DataCfg(
         families=tuple(parse_families(args.families)),
         paths=args.paths,
-        shard_size=args.shard_size,
         max_step=args.max_step,
         oracle=OracleCfg(
             runs=args.oracle_runs,
@@ -110,6 +123,8 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
             shortcuts=args.oracle_shortcuts,
         ),
         checker=args.checker,
+        categories=tuple(parse_categories(args.categories)),
+        **({"shard_size": args.shard_size} if args.shard_size else {}),
     )
     if args.oracle_budget is not None or args.oracle_rescue is not None:
         print(
@@ -125,7 +140,12 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
         bar.update(1)
 
     manifest = generate(
-        cfg, args.out, robot_config=args.robot, workers=args.workers, progress=progress
+        cfg,
+        args.out,
+        robot_config=args.robot,
+        workers=args.workers,
+        ray=args.ray,
+        progress=progress,
     )
     bar.close()
     print_table(

@@ -70,7 +70,7 @@ class Pairs:
             if len(path) < 2:
                 continue
             oriented += [path, path[::-1]]
-            scene_of += [int(p), int(p)]
+            scene_of += [int(ps.scene_of[p])] * 2
         if not oriented:
             raise ModelError("no path with two or more waypoints to train on")
         self.q = np.concatenate(oriented)
@@ -126,12 +126,14 @@ class Trainer:
                 f"the model's step {self.model_cfg.step} must equal the data's max_step "
                 f"{self.paths.max_step}"
             )
-        ids = np.random.default_rng(cfg.seed).permutation(len(self.paths.paths))
-        n_val = round(cfg.val_share * len(ids))
-        if n_val and len(ids) - n_val < 1:
-            raise ModelError("too few paths to hold some out for validation")
-        self.train_pairs = Pairs(self.paths, ids[n_val:])
-        self.val_pairs = Pairs(self.paths, ids[:n_val]) if n_val else None
+        # Validation holds out whole scenes: a scene's paths share its cloud.
+        scenes = np.random.default_rng(cfg.seed).permutation(len(self.paths.scenes))
+        held = scenes[: round(cfg.val_share * len(scenes))]
+        is_val = np.isin(self.paths.scene_of, held)
+        if held.size and is_val.all():
+            raise ModelError("too few scenes to hold some out for validation")
+        self.train_pairs = Pairs(self.paths, np.flatnonzero(~is_val))
+        self.val_pairs = Pairs(self.paths, np.flatnonzero(is_val)) if is_val.any() else None
         self.embodiment = build_embodiment(robot)
         self.robot_cloud = RobotCloud(robot, self.embodiment)
         self.device = pick_device(cfg.device)

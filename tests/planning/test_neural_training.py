@@ -11,7 +11,8 @@ import pytest
 import torch
 
 from core.errors import ModelError
-from planning.neural.data import DataCfg, generate, load_paths, read_manifest
+from planning.neural.data import DataCfg, load_paths, read_manifest
+from planning.neural.data_backends import generate
 from planning.neural.models import ModelCfg
 from planning.neural.train import TrainCfg, Trainer
 from planning.oracle import OracleCfg
@@ -21,8 +22,9 @@ from tests.conftest import run_cli
 TINY = ModelCfg(
     hidden=32, heads=2, ff=64, enc_layers=2, dec_layers=1, scene_points=256, scene_tokens=8
 )
+# Two scenes (a TableTop and a Box), each with its four categories' start/goal pairs.
 DATA = DataCfg(
-    families=("tabletop", "box"), paths=4, shard_size=2, oracle=OracleCfg(runs=2, shortcuts=50)
+    families=("tabletop", "box"), paths=8, shard_size=4, oracle=OracleCfg(runs=2, shortcuts=50)
 )
 
 
@@ -38,10 +40,13 @@ def test_the_data_set_holds_resampled_oracle_paths_and_resumes(
 ) -> None:
     manifest = read_manifest(data_dir)
     assert manifest["complete"] and len(manifest["shards"]) == 2
-    assert manifest["paths"] + manifest["failures"] == 4
+    assert manifest["paths"] + manifest["failures"] == 8
     ps = load_paths(data_dir)
-    assert len(ps.paths) == manifest["paths"] >= 3
+    assert len(ps.paths) == manifest["paths"] >= 7
     assert ps.scenes.shape[1:] == (DATA.scene_points, 3)
+    # one cloud per scene, shared by its paths; the categories cycle within a scene
+    assert len(ps.scenes) == 2 and set(ps.scene_of.tolist()) == {0, 1}
+    assert set(ps.categories.tolist()) == {0, 1, 2, 3}
     for p in ps.paths:
         steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
         assert steps.max() <= DATA.max_step + 1e-5
@@ -58,8 +63,24 @@ def test_the_data_set_holds_resampled_oracle_paths_and_resumes(
     again = generate(DATA, copy, workers=1)
     assert again["complete"] and (copy / "shard-00001.npz").is_file()
     assert kept.stat().st_mtime_ns == before
+    # the remade shard is byte for byte the one made the first time
+    assert (copy / "shard-00001.npz").read_bytes() == (data_dir / "shard-00001.npz").read_bytes()
     with pytest.raises(ModelError, match="other settings"):
         generate(DataCfg(families=("bins",), paths=4, shard_size=2), copy, workers=1)
+
+
+def test_a_ray_cluster_makes_the_same_shards(data_dir: Path, tmp_path: Path) -> None:
+    import ray
+
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        manifest = generate(DATA, tmp_path, ray="auto")
+    finally:
+        ray.shutdown()
+    assert manifest["complete"]
+    for k in range(2):
+        name = f"shard-{k:05d}.npz"
+        assert (tmp_path / name).read_bytes() == (data_dir / name).read_bytes()
 
 
 def test_a_corrupt_shard_or_a_missing_manifest_is_named(data_dir: Path, tmp_path: Path) -> None:
