@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from core.errors import PlanningError
-from planning.families import FAMILIES, generate_problem, split_seed
+from planning.families import CATEGORIES, FAMILIES, generate_problem, split_seed
 from planning.path_check import check_path
 from planning.planner import PlanStatus
 from planning.problem import Problem, load_problems, problem_from_dict
@@ -40,6 +40,8 @@ class HarnessCfg:
     budget_s: float | None = 5.0  # None: "auto", the reference planner's mean time per family
     reference: str = "gaide"  # whose mean time "auto" hands the others
     fallback_budget_s: float = 5.0  # "auto" without the reference planner
+    # test (balanced: problem i is category CATEGORIES[i % 4] of test seed i), test-legacy
+    # (the family's own start and goal targets, categories as they fall), train, val
     split: str = "test"
     first: int = 0  # index of the first problem in the split
     workers: int = field(default_factory=lambda: os.cpu_count() or 1)
@@ -114,12 +116,14 @@ def _init_worker(robot_config: str | None, weights: str | None = None) -> None:
 
 
 @lru_cache(maxsize=64)
-def _problem(key: tuple[str, int]) -> Problem:
+def _problem(key: tuple[str, int, str | None]) -> Problem:
     assert _ROBOT is not None
-    return generate_problem(key[0], key[1], *_ROBOT)
+    return generate_problem(key[0], key[1], *_ROBOT, category=key[2])
 
 
-def _run(task: tuple[dict[str, Any] | tuple[str, int], str, float, bool, str]) -> RunRecord:
+def _run(
+    task: tuple[dict[str, Any] | tuple[str, int, str | None], str, float, bool, str],
+) -> RunRecord:
     spec, planner_name, budget, mesh_check, backend = task
     assert _ROBOT is not None
     robot, spheres = _ROBOT
@@ -173,6 +177,15 @@ def _run(task: tuple[dict[str, Any] | tuple[str, int], str, float, bool, str]) -
 # -- driver ------------------------------------------------------------------------------
 
 
+def _success_by_category(runs: list[RunRecord]) -> dict[str, dict[str, float]]:
+    """{category: {"success_rate", "n"}} over ``runs`` (problem files: their difficulty)."""
+    out: dict[str, dict[str, float]] = {}
+    for cat in dict.fromkeys(r.difficulty for r in runs):
+        mine = [r.success for r in runs if r.difficulty == cat]
+        out[cat or "unknown"] = {"success_rate": float(np.mean(mine)), "n": len(mine)}
+    return out
+
+
 @dataclass
 class HarnessResult:
     cfg: HarnessCfg
@@ -210,7 +223,21 @@ class HarnessResult:
                     "cost_mean": float(costs.mean()) if len(costs) else None,
                     "budget_s": self.budgets.get(fam, {}).get(planner),
                     "bad_paths": sum(r.status == "bad_path" for r in runs),
+                    "success_by_category": _success_by_category(counted),
                 }
+        return out
+
+    def by_category(self) -> dict[str, dict[str, Any]]:
+        """{planner: {category: success rate over every family, and the count}}."""
+        out: dict[str, dict[str, Any]] = {}
+        for planner in dict.fromkeys(r.planner for r in self.records):
+            runs = [
+                r
+                for r in self.records
+                if r.planner == planner
+                and r.status not in (PlanStatus.START_INVALID.value, PlanStatus.GOAL_INVALID.value)
+            ]
+            out[planner] = _success_by_category(runs)
         return out
 
     def figures(self) -> dict[str, Any]:
@@ -229,6 +256,7 @@ class HarnessResult:
     def to_json(self) -> dict[str, Any]:
         return {
             "results": self.summary(),
+            "by_category": self.by_category(),
             "figures": self.figures(),
             "budgets": self.budgets,
             "notes": self.notes,
@@ -239,15 +267,32 @@ class HarnessResult:
         }
 
 
-def _specs(cfg: HarnessCfg, dof: int) -> list[tuple[str, dict[str, Any] | tuple[str, int]]]:
+def _specs(
+    cfg: HarnessCfg, dof: int
+) -> list[tuple[str, dict[str, Any] | tuple[str, int, str | None]]]:
     """(family, problem spec) for every problem of the benchmark."""
     if cfg.problem_file is not None:
         return [(p.family, p.to_dict()) for p in load_problems(cfg.problem_file, dof)]
     return [
-        (fam, (fam, split_seed(cfg.split, cfg.first + i)))
+        (fam, split_problem(fam, cfg.split, cfg.first + i))
         for fam in cfg.families
         for i in range(cfg.problems)
     ]
+
+
+SPLITS = ("test", "test-legacy", "train", "val")
+
+
+def split_problem(family: str, split: str, i: int) -> tuple[str, int, str | None]:
+    """(family, seed, category) of problem ``i`` of ``split``: the test split is balanced
+    over the four categories (25% each, in turn); ``test-legacy`` is the test seeds with
+    the family's own targets, as the tables before it were measured; train and val take
+    the family's own targets too."""
+    if split not in SPLITS:
+        raise PlanningError(f"unknown split '{split}'; valid: {list(SPLITS)}")
+    if split == "test":
+        return family, split_seed("test", i), CATEGORIES[i % len(CATEGORIES)]
+    return family, split_seed(split.removesuffix("-legacy"), i), None
 
 
 def run_harness(

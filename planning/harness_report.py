@@ -101,3 +101,21 @@ def plot(result: HarnessResult, path: str | Path) -> None:
     fig.savefig(tmp, dpi=110)
     plt.close(fig)
     tmp.replace(target)
+
+
+def category_table(result: HarnessResult) -> str:
+    """Success per planner and problem category, over every family, as Markdown."""
+    cats = result.by_category()
+    names = sorted({c for per in cats.values() for c in per})
+    head = "| planner | " + " | ".join(names) + " |"
+    rule = "|---|" + "---|" * len(names)
+    rows = [
+        f"| {p} | "
+        + " | ".join(
+            f"{100 * per[c]['success_rate']:.0f}% ({int(per[c]['n'])})" if c in per else "-"
+            for c in names
+        )
+        + " |"
+        for p, per in cats.items()
+    ]
+    return "\n".join([head, rule, *rows])

@@ -43,7 +43,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="seconds per run, or 'auto' (the reference planner's mean time per family)",
     )
     pla.add_argument("--reference", default="gaide", help="the planner whose mean time 'auto' uses")
-    pla.add_argument("--split", choices=["train", "val", "test"], default="test")
+    pla.add_argument(
+        "--split",
+        choices=["test", "test-legacy", "train", "val"],
+        default="test",
+        help="test: balanced over the four categories; test-legacy: the families' own targets",
+    )
     pla.add_argument("--first", type=int, default=0, help="index of the first problem in the split")
     pla.add_argument("--problem-file", help="YAML/JSON problem file instead of the families")
     pla.add_argument("--workers", type=int, help="processes (default: one per core)")
@@ -165,7 +170,7 @@ def cmd_planning(args: argparse.Namespace) -> int:
     from core.errors import PlanningError
     from planning.families import parse_families
     from planning.harness import HarnessCfg, run_harness
-    from planning.harness_report import markdown_table, plot, text_table
+    from planning.harness_report import category_table, markdown_table, plot, text_table
     from planning.registry import parse_planners
 
     if args.budget == "auto":
@@ -192,6 +197,8 @@ def cmd_planning(args: argparse.Namespace) -> int:
     )
     result = run_harness(cfg, progress=tqdm)
     print(text_table(result))
+    print("\nsuccess per category (all families):")
+    print(category_table(result))
     fig = result.figures()
     print(
         f"\n{fig['runs']} runs in {fig['wall_s']:.1f} s wall; planners {fig['planner_s']:.1f} s, "
@@ -203,7 +210,9 @@ def cmd_planning(args: argparse.Namespace) -> int:
     if args.json:
         out = Path(args.json)
         write_json(out, result.to_json())
-        out.with_suffix(".md").write_text(markdown_table(result) + "\n")
+        out.with_suffix(".md").write_text(
+            markdown_table(result) + "\n\nSuccess per category:\n\n" + category_table(result) + "\n"
+        )
         plot(result, out.with_suffix(".png"))
         print(f"wrote {out}, {out.with_suffix('.md')}, {out.with_suffix('.png')}")
     return 0

@@ -50,7 +50,7 @@ def test_a_planner_returning_a_colliding_path_counts_as_a_failure(
 
     harness._init_worker(None)
     monkeypatch.setattr(harness, "make_planner", lambda name, **_: Liar())
-    rec = harness._run((("box", split_seed("test", 0)), "liar", 1.0, False, "compiled"))
+    rec = harness._run((("box", split_seed("test", 0), None), "liar", 1.0, False, "compiled"))
     assert rec.status == "bad_path" and not rec.success and rec.cost is None
     assert "collides" in rec.detail
 
@@ -170,3 +170,24 @@ def test_bench_planning_loads_the_given_weights_folder(tmp_path: Path) -> None:
     shutil.copy(shipped_checkpoint("gaide"), weights / "mpnet.pt")
     proc = run_cli(*args, "--planners", "mpnet", "--weights", str(weights))
     assert proc.returncode == 10 and "holds a gaide model, not mpnet" in proc.stderr
+
+
+def test_the_test_split_is_balanced_over_the_categories_and_reported_by_category(
+    tmp_path: Path,
+) -> None:
+    from planning.families import CATEGORIES
+    from planning.harness import HarnessCfg, run_harness, split_problem
+    from planning.harness_report import category_table
+
+    specs = [split_problem("bins", "test", i) for i in range(8)]
+    assert [c for _, _, c in specs] == list(CATEGORIES) * 2
+    assert split_problem("bins", "test-legacy", 3)[2] is None
+    with pytest.raises(PlanningError, match="valid: \\['test', 'test-legacy'"):
+        split_problem("bins", "holdout", 0)
+    cfg = HarnessCfg(families=("bins",), planners=("rrtc",), problems=4, budget_s=30.0, workers=1)
+    result = run_harness(cfg)
+    assert sorted(r.difficulty for r in result.records) == sorted(CATEGORIES)
+    per = result.summary()["bins"]["rrtc"]["success_by_category"]
+    assert set(per) == set(CATEGORIES) and all(v["n"] == 1 for v in per.values())
+    table = category_table(result)
+    assert all(c in table for c in CATEGORIES) and "| rrtc |" in table
