@@ -67,6 +67,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     tr.add_argument("--batch", type=int, default=128)
     tr.add_argument("--lr", type=float, default=1e-3)
     tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--val-every", type=int, default=250, help="steps between loss records")
     tr.add_argument("--device", default="auto", help="auto (CUDA if present), cpu or cuda[:N]")
     tr.add_argument(
         "--threads", type=int, default=0, help="CPU threads (default: all; 1 when sharing cores)"
@@ -171,6 +172,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         seed=args.seed,
         device=args.device,
         threads=args.threads,
+        val_every=args.val_every,
     )
     from planning.neural.data import read_manifest
     from planning.neural.models import ModelCfg
@@ -197,7 +199,14 @@ def cmd_train(args: argparse.Namespace) -> int:
     trainer = Trainer(args.model, robot, args.data, cfg, model_cfg)
     if args.resume and Path(args.out).exists():
         trainer.resume(args.out)
-    bar = tqdm(total=cfg.steps, initial=trainer.step, desc=f"train {args.model}", unit="step")
+    main = trainer.dist.main  # under torchrun, rank 0 reports
+    bar = tqdm(
+        total=cfg.steps,
+        initial=trainer.step,
+        desc=f"train {args.model}",
+        unit="step",
+        disable=not main,
+    )
 
     def progress(step: int, entry: dict[str, float]) -> None:
         bar.update(step - bar.n)
@@ -205,11 +214,13 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     digest = trainer.run(args.out, progress)
     bar.close()
+    if not main:
+        return 0
     last = trainer.history[-1] if trainer.history else {}
     print_table(
         [
             ("checkpoint", f"{args.out} (sha256 {digest[:12]})"),
-            ("device", str(trainer.device)),
+            ("device", f"{trainer.device} x {trainer.dist.world} process(es)"),
             ("steps", str(trainer.step)),
             ("train loss", f"{last.get('train', float('nan')):.4f}"),
             ("val loss", f"{last.get('val', float('nan')):.4f}"),

@@ -1,6 +1,11 @@
 """Training: MSE on the normalized step delta_q / step along the oracle paths (both
-directions), AdamW with warm-up and cosine decay, validation on held-out paths, checkpoints
+directions), AdamW with warm-up and cosine decay, validation on held-out scenes, checkpoints
 and resume, CPU or CUDA (mixed precision there), reproducible from a seed.
+
+Under ``torchrun --nproc_per_node N`` the same code trains data-parallel
+(DistributedDataParallel; gloo on CPU, NCCL on GPU): each of the N processes draws
+``batch / N`` pairs of the global batch from its own stream, gradients are averaged, and only
+rank 0 validates, logs and writes checkpoints.
 
 Each training pair is a waypoint q_i of a path, its next waypoint q_{i+1} and a goal: the
 path's end, or (half of the time) a later waypoint of the same path, as the bidirectional
@@ -98,6 +103,26 @@ class Pairs:
         return self.scene[k], self.q[g], self.q[goal_idx], self.q[g + 1]
 
 
+@dataclass(frozen=True)
+class Dist:
+    """This process's place in a torchrun job (world 1, rank 0 without one)."""
+
+    world: int = 1
+    rank: int = 0
+    local_rank: int = 0
+
+    @staticmethod
+    def from_env() -> Dist:
+        import os
+
+        world = int(os.environ.get("WORLD_SIZE", "1"))
+        return Dist(world, int(os.environ.get("RANK", "0")), int(os.environ.get("LOCAL_RANK", "0")))
+
+    @property
+    def main(self) -> bool:
+        return self.rank == 0
+
+
 def pick_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -136,11 +161,26 @@ class Trainer:
         self.val_pairs = Pairs(self.paths, np.flatnonzero(is_val)) if is_val.any() else None
         self.embodiment = build_embodiment(robot)
         self.robot_cloud = RobotCloud(robot, self.embodiment)
+        self.dist = Dist.from_env()
+        if cfg.batch % self.dist.world:
+            raise ModelError(
+                f"the batch ({cfg.batch}) must divide into the {self.dist.world} processes"
+            )
         self.device = pick_device(cfg.device)
+        if self.dist.world > 1 and self.device.type == "cuda":
+            self.device = torch.device("cuda", self.dist.local_rank)
         if cfg.threads > 0:
             torch.set_num_threads(cfg.threads)
         torch.manual_seed(cfg.seed)
         self.model = build_model(kind, self.model_cfg, self.embodiment, robot.dof).to(self.device)
+        self.forward: nn.Module = self.model  # the model, or its DDP wrapper
+        if self.dist.world > 1:
+            import torch.distributed as td
+
+            if not td.is_initialized():
+                td.init_process_group("nccl" if self.device.type == "cuda" else "gloo")
+            ids = [self.device.index] if self.device.type == "cuda" else None
+            self.forward = nn.parallel.DistributedDataParallel(self.model, device_ids=ids)
         self.opt = torch.optim.AdamW(
             self.model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay
         )
@@ -187,10 +227,11 @@ class Trainer:
             for a in (robot, scene, q, goal, delta)
         )
 
-    def _loss(self, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
+    def _loss(self, batch: tuple[torch.Tensor, ...], *, train: bool = False) -> torch.Tensor:
         robot, scene, q, goal, delta = batch
+        net = self.forward if train else self.model
         with torch.autocast(self.device.type, enabled=self.amp):
-            pred = self.model(robot, encode_scene(self.model, scene), q, goal)
+            pred = net(robot, encode_scene(self.model, scene), q, goal)
         return nn.functional.mse_loss(pred.float(), delta)
 
     def validate(self, batches: int = 8) -> float:
@@ -221,6 +262,7 @@ class Trainer:
             "train": asdict(c),
             "model_cfg": self.model_cfg.to_dict(),
             "parameters": sum(p.numel() for p in self.model.parameters()),
+            "processes": self.dist.world,
             "device": str(self.device)
             + (
                 f" ({torch.cuda.get_device_name()})"
@@ -254,23 +296,25 @@ class Trainer:
         running: list[float] = []
         digest = ""
         t_last = time.perf_counter()
+        d = self.dist
         while self.step < c.steps:
-            rng = np.random.default_rng([c.seed, 0, self.step])
-            torch.manual_seed(c.seed * 1_000_003 + self.step)
+            # one stream per process (the single-process stream when there is one)
+            rng = np.random.default_rng([c.seed, 0, self.step, *([d.rank] if d.world > 1 else [])])
+            torch.manual_seed(c.seed * 1_000_003 + self.step + 7919 * d.rank)
             for g in self.opt.param_groups:
                 g["lr"] = self.lr_at(self.step)
-            loss = self._loss(self._tensors(self.train_pairs, rng, c.batch))
+            loss = self._loss(self._tensors(self.train_pairs, rng, c.batch // d.world), train=True)
             if not torch.isfinite(loss):
                 raise ModelError(
                     f"training diverged at step {self.step} (loss {float(loss)}); lower --lr"
                 )
             self.opt.zero_grad(set_to_none=True)
-            self.scaler.scale(loss).backward()
+            self.scaler.scale(loss).backward()  # DDP averages the gradients over processes
             self.scaler.unscale_(self.opt)
             nn.utils.clip_grad_norm_(self.model.parameters(), 1.0)
             self.scaler.step(self.opt)
             self.scaler.update()
-            running.append(loss.item())
+            running.append(self._global_mean(loss))
             self.step += 1
             last = self.step == c.steps
             if self.step % c.val_every == 0 or last:
@@ -280,15 +324,30 @@ class Trainer:
                 entry = {
                     "step": self.step,
                     "train": float(np.mean(running)),
-                    "val": self.validate(),
+                    "val": self.validate() if d.main else float("nan"),
                 }
                 running = []
                 self.history.append(entry)
-                if progress:
+                if progress and d.main:
                     progress(self.step, entry)
-            if self.step % c.save_every == 0 or last:
+            if (self.step % c.save_every == 0 or last) and d.main:
                 now = time.perf_counter()
                 self.wall_s += now - t_last
                 t_last = now
                 digest = save_checkpoint(out, self.checkpoint())
+        if d.world > 1:
+            import torch.distributed as td
+
+            td.barrier()
+            td.destroy_process_group()
         return digest
+
+    def _global_mean(self, loss: torch.Tensor) -> float:
+        """The loss averaged over the processes (the loss of the global batch)."""
+        if self.dist.world == 1:
+            return float(loss.item())
+        import torch.distributed as td
+
+        value = loss.detach().clone()
+        td.all_reduce(value)
+        return float(value.item()) / self.dist.world

@@ -4,6 +4,7 @@ paths, the ``gaide train`` command with its model card and resume."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -176,3 +177,36 @@ def test_gaide_plan_writes_a_checked_path_or_one_line_with_the_status(
         other.stderr
     )
     assert not bad_out.exists()
+
+
+def test_torchrun_with_two_processes_follows_the_single_process_loss_curve(
+    data_dir: Path, tmp_path: Path
+) -> None:
+    # The same global batch split over two gloo processes: the same optimisation, other
+    # random pairs, so the loss curves agree within the noise of the batches.
+    import json
+    import shutil
+    import subprocess
+    import sys
+
+    args = [
+        *("train", "--model", "mpnet", "--data", str(data_dir), "--hidden", "16"),
+        *("--ff", "32", "--steps", "150", "--batch", "32", "--lr", "3e-3", "--val-every", "25"),
+        *("--device", "cpu", "--threads", "1"),
+    ]
+    one = run_cli(*args, "--out", str(tmp_path / "one.pt"))
+    assert one.returncode == 0, one.stderr
+    torchrun = shutil.which("torchrun", path=str(Path(sys.executable).parent))
+    assert torchrun is not None, "torchrun comes with torch"
+    two = subprocess.run(
+        [torchrun, "--nproc_per_node", "2", "--no-python", sys.executable, "-m", "gaide", *args,
+         "--out", str(tmp_path / "two.pt")],
+        capture_output=True, text=True, timeout=600, env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )  # fmt: skip
+    assert two.returncode == 0, two.stderr[-2000:]
+    curves = [json.loads((tmp_path / f"{n}.pt.card.json").read_text()) for n in ("one", "two")]
+    assert [c["processes"] for c in curves] == [1, 2]
+    a, b = (np.array([h["train"] for h in c["history"]]) for c in curves)
+    assert len(a) == len(b) == 6
+    assert a[-1] < 0.7 * a[0] and b[-1] < 0.7 * b[0], "both learn"
+    assert np.all(np.abs(a - b) <= 0.25 * np.maximum(a, b)), (a, b)
