@@ -39,15 +39,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "local instance); default: local processes",
     )
     gen.add_argument("--max-step", type=float, default=0.3, help="path step (rad)")
-    gen.add_argument(
-        "--oracle-runs", type=int, default=8, help="compiled RRT-Connect runs per path"
-    )
-    gen.add_argument(
-        "--oracle-iterations", type=int, default=20_000, help="iterations per oracle run"
-    )
-    gen.add_argument(
-        "--oracle-shortcuts", type=int, default=400, help="shortcut attempts per oracle run"
-    )
+    gen.add_argument("--oracle-runs", type=int, help="compiled RRT-Connect runs per path (6)")
+    gen.add_argument("--oracle-iterations", type=int, help="iterations per oracle run (20,000)")
+    gen.add_argument("--oracle-refine", type=int, help="shortest runs that get the shortcuts (2)")
+    gen.add_argument("--oracle-shortcuts", type=int, help="shortcut attempts per refined run (250)")
     # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
     # the same labels under load). The old flags are still accepted and say so.
     for old_flag in ("--oracle-budget", "--oracle-rescue"):
@@ -119,9 +114,16 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
         paths=args.paths,
         max_step=args.max_step,
         oracle=OracleCfg(
-            runs=args.oracle_runs,
-            iterations=args.oracle_iterations,
-            shortcuts=args.oracle_shortcuts,
+            **{
+                key: value
+                for key, value in (
+                    ("runs", args.oracle_runs),
+                    ("iterations", args.oracle_iterations),
+                    ("refine", args.oracle_refine),
+                    ("shortcuts", args.oracle_shortcuts),
+                )
+                if value is not None
+            }
         ),
         checker=args.checker,
         categories=tuple(parse_categories(args.categories)),
