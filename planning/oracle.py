@@ -169,3 +169,41 @@ def oracle_quality(
         "oracle_time_s": oracle.time_s,
         "reference_time_s": time.perf_counter() - t0,
     }
+
+
+def first_step_direction(path: Array, step: float) -> Array:
+    """Unit direction (dof,) from the path's start to its point at arc length ``step`` rad
+    (the end if shorter): the first step a network trained on the path learns."""
+    p = np.asarray(path, float)
+    lengths = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(lengths)])
+    s = min(step, arc[-1])
+    i = int(np.clip(np.searchsorted(arc, s, side="right") - 1, 0, len(p) - 2))
+    f = (s - arc[i]) / lengths[i] if lengths[i] > 0 else 0.0
+    d = p[i] + f * (p[i + 1] - p[i]) - p[0]
+    return d / np.linalg.norm(d)
+
+
+def oracle_consistency(
+    checker: CollisionChecker,
+    start: Array,
+    goal: Array,
+    seeds: tuple[int, int],
+    *,
+    cfg: OracleCfg | None = None,
+    step: float = 0.3,
+) -> dict[str, Any]:
+    """Two independent oracle runs (generators seeded ``seeds``) on one problem: the angle
+    (deg) between their first steps of ``step`` rad and the ratio of their costs (>= 1).
+    NaN when either found no path."""
+    a, b = (oracle_path(checker, start, goal, np.random.default_rng(s), cfg) for s in seeds)
+    if a.path is None or b.path is None:
+        return {"first_step_deg": math.nan, "cost_spread": math.nan}
+    cos = float(
+        np.clip(first_step_direction(a.path, step) @ first_step_direction(b.path, step), -1, 1)
+    )
+    return {
+        "first_step_deg": math.degrees(math.acos(cos)),
+        "cost_spread": max(a.cost, b.cost) / min(a.cost, b.cost),
+        "time_s": a.time_s + b.time_s,
+    }
