@@ -86,6 +86,9 @@ class RunRecord:
     budget_s: float
     detail: str = ""
     overhead_s: float = 0.0  # problem generation + path check (harness time, not planner time)
+    # neural planners: proposal steps, and those where no proposal was valid
+    proposal_steps: int = 0
+    no_valid_proposals: int = 0
 
 
 # -- worker side -------------------------------------------------------------------------
@@ -171,10 +174,16 @@ def _run(
         budget_s=budget,
         detail=detail,
         overhead_s=gen_s + time.perf_counter() - t1,
+        proposal_steps=int(result.stats.get("proposal_steps", 0)),
+        no_valid_proposals=int(result.stats.get("no_valid_proposals", 0)),
     )
 
 
 # -- driver ------------------------------------------------------------------------------
+
+
+def _share(part: int, whole: int) -> float | None:
+    return part / whole if whole else None
 
 
 def _success_by_category(runs: list[RunRecord]) -> dict[str, dict[str, float]]:
@@ -224,6 +233,10 @@ class HarnessResult:
                     "budget_s": self.budgets.get(fam, {}).get(planner),
                     "bad_paths": sum(r.status == "bad_path" for r in runs),
                     "success_by_category": _success_by_category(counted),
+                    "no_valid_proposal_share": _share(
+                        sum(r.no_valid_proposals for r in counted),
+                        sum(r.proposal_steps for r in counted),
+                    ),
                 }
         return out
 

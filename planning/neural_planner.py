@@ -71,6 +71,8 @@ class NeuralPlanner:
     ``rollouts`` proposals per forward pass; ``max_steps`` of the bidirectional loop per
     (re)plan and ``replans`` rounds of replanning failing segments; ``restart_iterations`` the
     first slice of the hybrid fallback's restarted RRT-Connect (see :meth:`_Run.connect`);
+    ``widen`` how far a second draw reaches when no rollout is valid (see
+    :meth:`_Run.propose`; 0: no second draw, the paper's sampler);
     ``threads`` torch's intra-op threads while planning (0: torch's setting, untouched). One
     is the default: a step's batch is small, and after Open3D or OpenCV have run in the
     process, torch's default thread pool made each forward pass about 20x slower (measured);
@@ -92,6 +94,7 @@ class NeuralPlanner:
         max_steps: int | None = None,
         replans: int | None = None,
         restart_iterations: int = 2000,
+        widen: float = 3.0,
         threads: int = 1,
         kind: str | None = None,
     ) -> None:
@@ -111,6 +114,9 @@ class NeuralPlanner:
         self._sampler = sampler
         self.rollouts, self.max_steps, self.replans = rollouts, max_steps, replans
         self.restart_iterations, self.threads = restart_iterations, threads
+        if not (np.isfinite(widen) and widen >= 0):
+            raise PlanningError(f"widen must be a finite factor >= 0, got {widen}")
+        self.widen = widen
         self.kind = kind
 
     def plan(
@@ -170,6 +176,9 @@ class _Run:
         self._gap: tuple[list[Array], list[Array], bool] = ([], [], False)
         self.stats: dict[str, Any] = {
             "forward_passes": 0,
+            "proposal_steps": 0,
+            "no_valid_rollouts": 0,  # steps where no dropout rollout was valid
+            "no_valid_proposals": 0,  # ... nor any of the widened draw (when there is one)
             "neural_replans": 0,
             "fallback_segments": 0,
             "fallback_restarts": 0,
@@ -230,17 +239,39 @@ class _Run:
 
     def propose(self, q: Array, target: Array) -> Array | None:
         """The next node from ``q`` toward ``target``: the valid rollout nearest the target,
-        preferring those joined to ``q`` by a valid edge; None if no rollout is valid."""
+        preferring those joined to ``q`` by a valid edge; None if no rollout is valid.
+
+        Dropout's rollouts lie close together (6-16 deg apart measured on failing Bins
+        problems), so when one collides all do. When none is valid and ``widen`` > 0, as
+        many proposals are drawn again around their mean with ``widen`` times their own
+        spread (per joint, at least a tenth of the step), capped at one step from ``q``."""
         self._tick()
         cands = self.sampler.sample(self.scene, q, target, self.p.rollouts)
         self.stats["forward_passes"] += 1
+        self.stats["proposal_steps"] += 1
         ok = self.checker.config_valid(cands)
         if not ok.any():
-            return None
+            self.stats["no_valid_rollouts"] += 1
+            if self.p.widen > 0:
+                cands = self._widened(q, cands)
+                ok = self.checker.config_valid(cands)
+            if not ok.any():
+                self.stats["no_valid_proposals"] += 1
+                return None
         cands = cands[ok]
         reach = self.checker.edges_valid(np.repeat(q[None], len(cands), axis=0), cands)
         pool = cands[reach] if reach.any() else cands
         return pool[int(np.argmin(np.linalg.norm(pool - target, axis=1)))]
+
+    def _widened(self, q: Array, cands: Array) -> Array:
+        step = np.linalg.norm(cands - q, axis=1).max()
+        spread = np.maximum(cands.std(axis=0), 0.1 * max(step, 1e-3) / np.sqrt(cands.shape[1]))
+        wide = cands.mean(axis=0) + self.p.widen * spread * self.rng.normal(size=cands.shape)
+        delta = wide - q
+        norm = np.linalg.norm(delta, axis=1, keepdims=True)
+        wide = q + delta * np.minimum(1.0, max(step, 1e-3) / np.maximum(norm, 1e-12))
+        robot = self.checker.robot
+        return np.clip(wide, robot.lower, robot.upper)
 
     def bidirectional(self, start: Array, goal: Array) -> Array | None:
         """Algorithm 1: grow from both ends by turns until the ends see each other."""
