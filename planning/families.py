@@ -222,11 +222,20 @@ class _Ctx:
     checker: CollisionChecker
     rng: np.random.Generator
 
+    prefer: Array | None = None  # pick the IK solution nearest this (None: a random one)
+
     def ik(self, T: Array) -> Array | None:
         sols = solve_ik(
             self.robot, T, self.rng, cfg=IKCfg(restarts=10, max_solutions=3), checker=self.checker
         )
-        return sols[int(self.rng.integers(len(sols)))] if sols else None
+        if not sols:
+            return None
+        if self.prefer is None:
+            return sols[int(self.rng.integers(len(sols)))]
+        # The solution nearest the robot's home posture: a random one can be folded against
+        # a joint limit in a pocket of the free space that no motion leaves (measured: such
+        # ends made 1% of the category problems unsolvable by any planner).
+        return min(sols, key=lambda q: float(np.linalg.norm(q - self.prefer)))
 
 
 # Draws a candidate end-effector pose with the generator it is given (the scene's, or a
@@ -484,7 +493,7 @@ def _in_category(
         rng = np.random.default_rng(
             [FAMILIES.index(family), seed, attempt, 1 + CATEGORIES.index(category)]
         )
-        ctx = _Ctx(robot, endpoint_checker(make_checker(robot, spheres, world)), rng)
+        ctx = _Ctx(robot, endpoint_checker(make_checker(robot, spheres, world)), rng, _home(robot))
         targets = {"tight": (target_a, target_b), "free": (_free_target(),)}
         start = _end_of_kind(ctx, targets[want[0]], want[0] == "tight", hand, attempts)
         if start is None:
@@ -529,6 +538,12 @@ def _end_of_kind(
         if (clear < TIGHT_BELOW) == tight:
             return q
     return None
+
+
+def _home(robot: RobotModel) -> Array:
+    """The robot's ``home`` configuration, or the middle of its joint ranges."""
+    named = robot.config.named_configurations
+    return named["home"].copy() if "home" in named else (robot.lower + robot.upper) / 2
 
 
 def _hand_links(robot: RobotModel) -> tuple[str, ...]:

@@ -36,7 +36,9 @@ class OracleCfg:
     iterations: int = 20_000  # extend-connect iterations per run
     shortcuts: int = 250  # random shortcut attempts per refined path
     refine: int = 2  # the shortest runs (after vertex reduction) that get the shortcuts
-    rescue_iterations: int = 100_000  # one more run when none found a path (0: none)
+    # One more run when none found a path (0: none). Of 1,285 category problems, 11 had no
+    # path in 6 runs; the 100,000-iteration rescue solved none of them, at 13 s each.
+    rescue_iterations: int = 20_000
     max_step: float = 0.05  # rad, the label's largest joint-space step
 
     def __post_init__(self) -> None:
