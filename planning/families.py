@@ -230,12 +230,13 @@ class _Ctx:
         )
         if not sols:
             return None
-        if self.prefer is None:
+        prefer = self.prefer
+        if prefer is None:
             return sols[int(self.rng.integers(len(sols)))]
         # The solution nearest the robot's home posture: a random one can be folded against
         # a joint limit in a pocket of the free space that no motion leaves (measured: such
         # ends made 1% of the category problems unsolvable by any planner).
-        return min(sols, key=lambda q: float(np.linalg.norm(q - self.prefer)))
+        return min(sols, key=lambda q: float(np.linalg.norm(q - prefer)))
 
 
 # Draws a candidate end-effector pose with the generator it is given (the scene's, or a
