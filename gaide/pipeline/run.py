@@ -11,17 +11,16 @@ report of what succeeded is written when reports are on.
 from __future__ import annotations
 
 import logging
-import shutil
 from pathlib import Path
 
-from core.errors import ConfigError, GaideError
+from core.errors import GaideError
 from execution.parameterizer import TimeParameterizer
 from gaide.pipeline.config import RunCfg
 from gaide.pipeline.config_io import dump_cfg
 from gaide.pipeline.execute import EXPORT_NAMES, export_stage, simulation_stage
 from gaide.pipeline.motion import planning_stage, timing_stage
 from gaide.pipeline.report import report_stage
-from gaide.pipeline.runner import StageHooks, StageRunner
+from gaide.pipeline.runner import StageHooks, StageRunner, claim_folder, folder_lock
 from gaide.pipeline.sense import (
     calibration_stage,
     given_camera,
@@ -60,23 +59,30 @@ def run_pipeline(
     """Run every stage into ``cfg.out``; returns the runner (records, summary). A stage's
     failure raises that stage's exception after the partial outputs are written."""
     config_yaml = dump_cfg(cfg)
-    runner = StageRunner(
-        cfg.out,
-        STAGES,
-        hooks=hooks,
-        header={"title": title, "bag": cfg.bag, "config": cfg.as_dict()},
-    )
-    try:
-        _stages(cfg, runner, parameterizer)
-    except BaseException:
+    out = Path(cfg.out)
+    with folder_lock(out):
+        # Before anything is written: the earlier run's files go (all of them, so that a
+        # failure leaves only this run's), anyone else's stay and stop the run.
+        claim_folder(out, OUTPUTS)
+        runner = StageRunner(
+            out,
+            STAGES,
+            hooks=hooks,
+            header={"title": title, "bag": cfg.bag, "config": cfg.as_dict()},
+        )
+        runner.write_summary()  # "running"
+        try:
+            _stages(cfg, runner, parameterizer)
+        except BaseException:
+            if cfg.report.enabled:
+                _partial_report(runner, config_yaml, title)
+            raise
         if cfg.report.enabled:
-            _partial_report(runner, config_yaml, title)
-        raise
-    if cfg.report.enabled:
-        with runner.stage("report"):
-            report_stage(runner, config_yaml, title)
-    else:
-        runner.skip("report", "report.enabled is false")
+            with runner.stage("report"):
+                report_stage(runner, config_yaml, title)
+        else:
+            runner.skip("report", "report.enabled is false")
+        runner.finish()
     return runner
 
 
@@ -97,26 +103,9 @@ OUTPUTS = (
 )
 
 
-def clear_earlier_run(out: Path) -> None:
-    """Remove what an earlier run wrote into ``out`` (only the names a run writes), so that
-    after a failure the folder holds this run's files only."""
-    for name in OUTPUTS:
-        path = out / name
-        try:
-            if path.is_dir() and not path.is_symlink():
-                shutil.rmtree(path)
-            else:
-                path.unlink(missing_ok=True)
-        except OSError as err:
-            raise ConfigError(
-                f"cannot replace {path}, written by an earlier run: {err}; choose another -o"
-            ) from err
-
-
 def _stages(cfg: RunCfg, runner: StageRunner, parameterizer: TimeParameterizer | None) -> None:
     with runner.stage("setup") as rec:
         setup = setup_stage(cfg, rec)
-        clear_earlier_run(runner.out)
     if cfg.calibration.T_base_cam is not None:
         camera = given_camera(cfg)
         runner.records["calibration"].figures.update(

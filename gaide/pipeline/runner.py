@@ -3,8 +3,13 @@ figures, and keeping the output folder consistent.
 
 - A stage's files are written together at its end (:meth:`StageRunner.commit`): each to a
   temporary sibling, then all renamed into place; a failure leaves none of them.
-- ``summary.json`` is rewritten (atomically) after every stage, so a failed run still says
-  which stages succeeded, what they wrote, and which stage failed and why.
+- ``summary.json`` is rewritten (atomically) after every stage and every commit, so a failed
+  run still says which stages succeeded, what they wrote, and which stage failed and why.
+  Its ``status`` is ``running`` until the run ends (``success`` or ``failed``): a run that
+  was killed reads as unfinished. It lists every file the run wrote, which is how the next
+  run into the folder knows what it may replace (:func:`claim_folder`).
+- One run at a time per folder: a lock file (``.gaide-run.lock``, holding the process id)
+  refuses a second run while the first one lives.
 - A stage's failure is re-raised as that stage's exception (its exit code) with the stage's
   name in front of the message: ``planning: start is in collision ...``. Errors about
   settings, the bag file and model weights keep their own class (and code): they name the
@@ -132,6 +137,7 @@ class StageRunner:
         self.header = dict(header or {})
         self.failed: str | None = None
         self.error = ""
+        self.finished = False
         self._t0 = time.perf_counter()
         try:
             self.out.mkdir(parents=True, exist_ok=True)
@@ -184,6 +190,7 @@ class StageRunner:
                 else:
                     content(tmp)
         record.outputs.extend(str(t) for t in targets)
+        self.write_summary()  # the files are listed as soon as they exist
         return targets
 
     def path(self, name: str) -> Path:
@@ -193,7 +200,7 @@ class StageRunner:
         return _jsonable(
             {
                 **self.header,
-                "status": "failed" if self.failed else "success",
+                "status": "failed" if self.failed else "success" if self.finished else "running",
                 "failed_stage": self.failed,
                 "error": self.error or None,
                 "wall_s": round(time.perf_counter() - self._t0, 3),
@@ -205,3 +212,107 @@ class StageRunner:
         """``summary.json`` in the output folder, atomically."""
         text = json.dumps(self.summary(), indent=2) + "\n"
         return write_bytes_atomic(self.out / "summary.json", text.encode(), ExecutionError)
+
+    def finish(self) -> None:
+        """The run is over (every stage ran or was skipped): the summary says so."""
+        self.finished = True
+        self.write_summary()
+
+
+LOCK = ".gaide-run.lock"
+SUMMARY = "summary.json"
+
+
+@contextlib.contextmanager
+def folder_lock(out: Path) -> Iterator[None]:
+    """Hold ``out``'s run lock: ConfigError if a live process holds it (a stale lock, left
+    by a killed run, is taken over)."""
+    import os
+
+    lock = out / LOCK
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ConfigError(f"cannot create the output folder {out}: {err}") from err
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            holder = _lock_holder(lock)
+            if holder is not None:
+                raise ConfigError(
+                    f"another gaide run (process {holder}) is writing into {out}; wait for it "
+                    "to end or choose another -o"
+                ) from None
+            lock.unlink(missing_ok=True)  # stale: its process is gone
+            continue
+        except OSError as err:
+            raise ConfigError(f"cannot write into the output folder {out}: {err}") from err
+        with os.fdopen(fd, "w") as f:
+            f.write(str(os.getpid()))
+        break
+    try:
+        yield
+    finally:
+        lock.unlink(missing_ok=True)
+
+
+def _lock_holder(lock: Path) -> int | None:
+    """The live process holding ``lock``, or None when it is stale or unreadable."""
+    import os
+
+    try:
+        pid = int(lock.read_text().strip())
+        os.kill(pid, 0)
+    except (OSError, ValueError):
+        return None
+    return pid
+
+
+def claim_folder(out: Path, names: Sequence[str]) -> None:
+    """Make ``out`` ready for a new run that may write ``names``: remove the files an
+    earlier run wrote there (those its ``summary.json`` lists), and refuse (ConfigError,
+    nothing removed) when a file or folder of one of those names is there but no earlier
+    run of this folder wrote it: it is someone else's."""
+    import shutil
+
+    earlier = _earlier_outputs(out)
+    present = [
+        name for name in (*names, SUMMARY) if (out / name).exists() or (out / name).is_symlink()
+    ]
+    foreign = [name for name in present if name not in earlier and name != SUMMARY]
+    if SUMMARY in present and not earlier and not _is_run_summary(out / SUMMARY):
+        foreign.append(SUMMARY)
+    if foreign:
+        raise ConfigError(
+            f"{out} holds {', '.join(foreign)}, which no gaide run wrote there; move them or "
+            "choose another -o (a run replaces only its own earlier files)"
+        )
+    for name in present:
+        path = out / name
+        try:
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path)
+            else:
+                path.unlink(missing_ok=True)
+        except OSError as err:
+            raise ConfigError(
+                f"cannot replace {path}, written by an earlier run: {err}; choose another -o"
+            ) from err
+
+
+def _earlier_outputs(out: Path) -> set[str]:
+    """Names of the files the earlier run's summary lists (empty without one)."""
+    try:
+        summary = json.loads((out / SUMMARY).read_text())
+        stages = summary["stages"].values()
+        return {Path(p).name for st in stages for p in st.get("outputs", [])} | {SUMMARY}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return set()
+
+
+def _is_run_summary(path: Path) -> bool:
+    try:
+        return isinstance(json.loads(path.read_text()).get("stages"), dict)
+    except (OSError, ValueError, AttributeError):
+        return False

@@ -169,7 +169,11 @@ def test_a_failed_stage_exits_with_its_code_and_keeps_earlier_outputs(
         "simulation": "sim_log.csv",
     }[stage]
     out.mkdir()
-    (out / produced).write_text("from an earlier run")  # must not survive this one
+    # an earlier run's file, listed in its summary as a run lists what it wrote: it must not
+    # survive this run
+    (out / produced).write_text("from an earlier run")
+    earlier = {"stages": {"setup": {"outputs": [str(out / produced)]}}}
+    (out / "summary.json").write_text(json.dumps(earlier))
     source: tuple[str, ...] = ("--calib", str(run_out[0] / "calibration.yaml"))
     if case == "no-target":
         wrong = tmp_path / "wrong_target.yaml"
@@ -307,3 +311,70 @@ def test_real_recording_runs_with_a_given_camera_pose(tmp_path: Path) -> None:
     assert st["timing"]["figures"]["duration_s"] > 0
     for name in ("scene.ply", "plan.json", "trajectory.csv", "report.html"):
         assert (out / name).is_file(), name
+
+
+def test_a_run_replaces_only_what_runs_wrote_and_one_runs_at_a_time(
+    bag: Path, run_out: tuple[Path, str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import subprocess
+    import sys
+
+    calib = ("--calib", str(run_out[0] / "calibration.yaml"))
+    out = tmp_path / "mine"
+    out.mkdir()
+    # the user's own files under names a run writes: refused, untouched
+    (out / "plan.json").write_text("my plan")
+    (out / "trajectory_ros2").mkdir()
+    (out / "trajectory_ros2" / "keep.txt").write_text("mine")
+    rc, line = _run(capsys, str(bag), "--goal", GOAL, "-o", str(out), *RUN_FLAGS, *calib)
+    assert rc == 2 and "no gaide run wrote there" in line and "plan.json" in line, line
+    assert (out / "plan.json").read_text() == "my plan"
+    assert (out / "trajectory_ros2" / "keep.txt").exists()
+    assert sorted(p.name for p in out.iterdir()) == ["plan.json", "trajectory_ros2"]
+
+    # a live process holding the folder's lock: refused; a stale lock: taken over
+    free = tmp_path / "locked"
+    free.mkdir()
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (free / ".gaide-run.lock").write_text(str(holder.pid))
+        rc, line = _run(capsys, str(bag), "--goal", GOAL, "-o", str(free), *RUN_FLAGS, *calib)
+        assert rc == 2 and f"process {holder.pid}" in line, line
+        assert not (free / "summary.json").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    assert main(["run", str(bag), "--goal", GOAL, "-o", str(free), *RUN_FLAGS, *calib]) == 0
+    assert not (free / ".gaide-run.lock").exists()
+    assert json.loads((free / "summary.json").read_text())["status"] == "success"
+
+
+def test_the_summary_says_running_until_the_run_ends(
+    bag: Path, run_out: tuple[Path, str], tmp_path: Path
+) -> None:
+    from gaide.pipeline.config_io import load_cfg
+    from gaide.pipeline.run import run_pipeline
+    from gaide.pipeline.runner import StageRecord
+
+    out = tmp_path / "watched"
+    seen: list[str] = []
+
+    class Watch:
+        def started(self, name: str, index: int, total: int) -> None:
+            if name == "timing":
+                seen.append(json.loads((out / "summary.json").read_text())["status"])
+
+        def finished(self, record: StageRecord) -> None:
+            pass
+
+    cfg = load_cfg(
+        overrides=[
+            ("bag", str(bag)), ("out", str(out)), ("planning.goal", GOAL),
+            ("calibration.calib", str(run_out[0] / "calibration.yaml")),
+            ("planning.planner", "rrtc"), ("timing.rate_hz", 100.0),
+            ("simulate.settle_s", 0.0), ("report.enabled", False),
+        ]
+    )  # fmt: skip
+    run_pipeline(cfg, hooks=Watch())
+    assert seen == ["running"]
+    assert json.loads((out / "summary.json").read_text())["status"] == "success"
