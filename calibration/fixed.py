@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import yaml
 
 from calibration.frames import check_camera, check_stamps, not_found_error, observe
 from calibration.pnp import project, robust_average
@@ -22,6 +21,7 @@ from calibration.result import CalibrationResult, FrameResidual, Mode
 from calibration.scale_check import check_target_scale
 from calibration.targets import Target, target_from_dict, to_dict
 from core.errors import CalibrationError
+from core.text_io import load_yaml
 from core.transforms import from_xyz_quat, invert, is_rigid
 
 Array = npt.NDArray[np.float64]
@@ -133,12 +133,7 @@ def load_target_pose(path: str | os.PathLike[str]) -> tuple[Target, Array]:
     T_base_target: {xyz: [0.5, 0.0, 0.0], quat_xyzw: [0, 0, 0, 1]}   # or {matrix: 4x4}
     """
     p = Path(path)
-    try:
-        data = yaml.safe_load(p.read_text())
-    except FileNotFoundError as err:
-        raise CalibrationError(f"target pose file {p} does not exist") from err
-    except (OSError, yaml.YAMLError) as err:
-        raise CalibrationError(f"cannot read target pose file {p}: {err}") from err
+    data = load_yaml(p, "target pose file", CalibrationError)
     if not isinstance(data, dict) or "target" not in data or "T_base_target" not in data:
         raise CalibrationError(
             f"target pose file {p} must be a mapping with keys 'target' and 'T_base_target'"

@@ -32,6 +32,7 @@ import yaml
 
 from core.atomic import write_bytes_atomic
 from core.errors import CalibrationError
+from core.text_io import load_yaml
 from core.transforms import from_xyz_quat, is_rigid, to_xyz_quat, transform_error
 
 Array = npt.NDArray[np.float64]
@@ -263,14 +264,5 @@ def _result_from_dict(data: Any, where: str) -> CalibrationResult:
 def load_calibration(path: str | os.PathLike[str]) -> CalibrationResult:
     """Read and validate a calibration YAML written by ``CalibrationResult.save_yaml``."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except FileNotFoundError as err:
-        raise CalibrationError(f"calibration file {p} does not exist") from err
-    except OSError as err:
-        raise CalibrationError(f"cannot read calibration file {p}: {err}") from err
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise CalibrationError(f"calibration file {p} is not valid YAML: {err}") from err
+    data = load_yaml(p, "calibration file", CalibrationError)
     return _result_from_dict(data, f"calibration file {p}")

@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from core.errors import ExecutionError, TimingError
+from core.text_io import load_json
 from execution.limits import JointLimits
 from execution.timing_cfg import TimingMode
 from execution.trajectory import SegmentInfo, TimedTrajectory, TimingStatus
@@ -169,10 +170,7 @@ def _rate(t: Array, source: Path) -> float:
 
 
 def _read_json(source: Path) -> TimedTrajectory:
-    try:
-        raw = json.loads(source.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise ExecutionError(f"{source}: not valid JSON ({err})") from err
+    raw = load_json(source, "trajectory file", ExecutionError)
     if not isinstance(raw, dict) or raw.get("format") != FORMAT:
         raise ExecutionError(f"{source}: not a trajectory file (needs format '{FORMAT}')")
     try:

@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import yaml
 
 from core.errors import ConfigError
+from core.text_io import load_yaml
 from core.transforms import from_xyz_rpy
 
 Array = npt.NDArray[np.float64]
@@ -99,12 +99,7 @@ def _vector(raw: Any, name: str, source: Path) -> Array | None:
 def load_robot_config(path: str | Path | None = None) -> RobotConfig:
     """Load a robot config YAML (default: the UR5 of example-robot-data)."""
     source = Path(path) if path is not None else DEFAULT_CONFIG
-    if not source.is_file():
-        raise ConfigError(f"robot config {source} does not exist")
-    try:
-        raw = yaml.safe_load(source.read_text())
-    except yaml.YAMLError as err:
-        raise ConfigError(f"robot config {source} is not valid YAML: {err}") from err
+    raw = load_yaml(source, "robot config", ConfigError)
     if not isinstance(raw, dict) or "urdf" not in raw:
         raise ConfigError(f"robot config {source} must be a mapping with at least 'urdf'")
     known = {

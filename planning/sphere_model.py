@@ -19,6 +19,7 @@ import pinocchio as pin
 import yaml
 
 from core.errors import RobotModelError
+from core.text_io import load_yaml
 from planning.robot_model import RobotModel
 
 Array = npt.NDArray[np.float64]
@@ -94,12 +95,7 @@ class SphereModel:
         """Read cuRobo's layout: ``collision_spheres`` at the top level or under
         ``robot_cfg.kinematics``."""
         source = Path(path)
-        if not source.is_file():
-            raise RobotModelError(f"sphere file {source} does not exist")
-        try:
-            raw = yaml.safe_load(source.read_text())
-        except yaml.YAMLError as err:
-            raise RobotModelError(f"sphere file {source} is not valid YAML: {err}") from err
+        raw = load_yaml(source, "sphere file", RobotModelError)
         if isinstance(raw, dict) and "robot_cfg" in raw:
             raw = (raw.get("robot_cfg") or {}).get("kinematics") or {}
         table = raw.get("collision_spheres") if isinstance(raw, dict) else None

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from core.errors import ConfigError, ExecutionError, TimingError
+from core.text_io import load_json
 from gaide.common import add_checker_option, print_table, robot_and_spheres, write_json
 from gaide.scene_spec import HELP as SCENE_HELP
 from gaide.scene_spec import Scene, load_scene
@@ -95,12 +96,7 @@ def _floats(text: str | None, what: str) -> tuple[float, ...] | None:
 def read_path_file(path: str | Path) -> dict[str, Any]:
     """The path JSON ``gaide plan`` writes (TimingError naming what is missing)."""
     source = Path(path)
-    if not source.is_file():
-        raise TimingError(f"path file {source} does not exist")
-    try:
-        raw = json.loads(source.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise TimingError(f"path file {source} is not valid JSON: {err}") from err
+    raw = load_json(source, "path file", TimingError)
     if not isinstance(raw, dict) or "path" not in raw:
         raise TimingError(
             f"path file {source} needs a 'path' list of waypoints (as `gaide plan` writes)"

@@ -16,6 +16,7 @@ from typing import Any
 import yaml
 
 from core.errors import ConfigError
+from core.text_io import load_yaml, parse_yaml
 from gaide.pipeline.config import RunCfg
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -33,12 +34,7 @@ PATH_KEYS = (
 def read_yaml(path: str | Path) -> dict[str, Any]:
     """A YAML file holding a mapping (ConfigError naming the file otherwise)."""
     source = Path(path)
-    if not source.is_file():
-        raise ConfigError(f"config file {source} does not exist")
-    try:
-        raw = yaml.safe_load(source.read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
-        raise ConfigError(f"config file {source} is not valid YAML: {err}") from err
+    raw = load_yaml(source, "config file", ConfigError)
     if raw is None:
         return {}
     if not isinstance(raw, dict):
@@ -90,10 +86,7 @@ def parse_assignment(text: str) -> tuple[str, Any]:
     key, sep, value = text.partition("=")
     if not sep or not key.strip():
         raise ConfigError(f"--set '{text}': give KEY=VALUE, e.g. planning.budget_s=5")
-    try:
-        return key.strip(), yaml.safe_load(value)
-    except yaml.YAMLError as err:
-        raise ConfigError(f"--set '{text}': the value is not valid YAML: {err}") from err
+    return key.strip(), parse_yaml(value, f"--set '{text}': the value", ConfigError)
 
 
 def _get(raw: dict[str, Any], dotted: str) -> Any:

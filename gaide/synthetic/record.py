@@ -12,6 +12,7 @@ import numpy.typing as npt
 import yaml
 
 from core.errors import ConfigError
+from core.text_io import load_yaml
 from core.transforms import to_xyz_quat
 from gaide.synthetic.raycast import RaycastScene, Texture
 from gaide.synthetic.scene import SyntheticScene, obstacle_meshes, target_plate
@@ -144,9 +145,7 @@ def ground_truth(scene: SyntheticScene, robot: RobotModel) -> dict[str, Any]:
 
 def load_ground_truth(path: str | Path) -> dict[str, Any]:
     source = Path(path)
-    if not source.is_file():
-        raise ConfigError(f"ground truth {source} does not exist")
-    data = yaml.safe_load(source.read_text())
+    data = load_yaml(source, "ground truth", ConfigError)
     if not isinstance(data, dict) or "T_base_cam" not in data:
         raise ConfigError(f"{source} is not a ground-truth file (no T_base_cam)")
     return data
