@@ -13,17 +13,19 @@ import os
 import time
 import zlib
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
+import numpy.typing as npt
 
 from core.errors import PlanningError
+from planning.collision import CollisionChecker
 from planning.families import CATEGORIES, FAMILIES, generate_problem, split_seed
 from planning.path_check import check_path
-from planning.planner import PlanStatus
+from planning.planner import Planner, PlanResult, PlanStatus, check_endpoints
 from planning.problem import Problem, load_problems, problem_from_dict
 from planning.registry import is_neural, make_planner, planner_names
 from planning.robot_model import RobotModel, load_robot
@@ -142,16 +144,15 @@ def _run(
     checkpoint = None
     if _WEIGHTS is not None and is_neural(planner_name):
         checkpoint = _WEIGHTS / f"{planner_name.removesuffix('-hybrid')}.pt"
-    result = make_planner(planner_name, checkpoint=checkpoint).plan(
-        checker, problem.start, problem.goal, budget_s=budget, rng=rng
-    )
+    planner = make_planner(planner_name, checkpoint=checkpoint)
+    result = _plan(planner, checker, problem, budget, rng)
     t1 = time.perf_counter()
     status, success, cost, detail = result.status.value, False, None, result.detail
     if result.status is PlanStatus.SUCCESS:
         check = check_path(
             result.path,
             problem.start,
-            problem.goal,
+            problem.goals,
             robot,
             spheres,
             problem.world,
@@ -177,6 +178,55 @@ def _run(
         proposal_steps=int(result.stats.get("proposal_steps", 0)),
         no_valid_proposals=int(result.stats.get("no_valid_proposals", 0)),
     )
+
+
+@runtime_checkable
+class _ManyGoals(Protocol):
+    """A planner rooted at several starts and goals at once (rrtc, the OMPL planners)."""
+
+    def plan_between(
+        self,
+        checker: CollisionChecker,
+        starts: npt.NDArray[np.float64],  # (m, dof) rad
+        goals: npt.NDArray[np.float64],  # (n, dof) rad
+        *,
+        budget_s: float,
+        rng: np.random.Generator,
+    ) -> PlanResult: ...
+
+
+def _plan(
+    planner: Planner,
+    checker: CollisionChecker,
+    problem: Problem,
+    budget_s: float,
+    rng: np.random.Generator,
+) -> PlanResult:
+    """``planner`` on ``problem``: to its goal, or to any of its several goals."""
+    if len(problem.goals) == 1:
+        return planner.plan(checker, problem.start, problem.goal, budget_s=budget_s, rng=rng)
+    t0 = time.perf_counter()
+    # plan_between wants valid ends: the statuses plan() gives, for the start and for the
+    # goals when none of them is valid; invalid goals among valid ones are left out.
+    valid = checker.config_valid(problem.goals)
+    bad = check_endpoints(checker, problem.start, problem.goals[int(np.argmax(valid))])
+    if bad is not None:
+        status, detail = bad
+        if status is PlanStatus.GOAL_INVALID:
+            why = detail.removeprefix("goal: ")
+            detail = f"all {len(problem.goals)} goals are invalid; goal 0: {why}"
+        return PlanResult(planner.name, status, None, time.perf_counter() - t0, detail=detail)
+    goals = problem.goals[valid]
+    spent = time.perf_counter() - t0
+    left = max(budget_s - spent, 1e-3)
+    if isinstance(planner, _ManyGoals):
+        result = planner.plan_between(checker, problem.start[None], goals, budget_s=left, rng=rng)
+    else:
+        # Planners without plan_between (the neural ones) take one goal: the valid goal
+        # nearest the start in joint space (Euclidean, rad); the others are not tried.
+        nearest = goals[int(np.argmin(np.linalg.norm(goals - problem.start, axis=1)))]
+        result = planner.plan(checker, problem.start, nearest, budget_s=left, rng=rng)
+    return replace(result, time_s=result.time_s + spent)
 
 
 # -- driver ------------------------------------------------------------------------------

@@ -30,7 +30,7 @@ class PathCheck:
 def check_path(
     path: Array | None,
     start: Array,
-    goal: Array,
+    goal: Array,  # (dof,) or (G, dof): several goals, any of which ends the path
     robot: RobotModel,
     spheres: SphereModel,
     world: PrimitiveWorld,
@@ -39,7 +39,8 @@ def check_path(
     meshes: bool = False,
     mesh_step: float = 0.02,
 ) -> PathCheck:
-    """Is ``path`` (K, dof) a valid path from start to goal? Endpoints must match (1e-6 rad),
+    """Is ``path`` (K, dof) a valid path from start to goal? ``goal`` is one goal (dof,) or
+    several (G, dof), of which the path must end at one. Endpoints must match (1e-6 rad),
     every configuration be inside the limits, every edge be collision-free at
     ``resolution_factor`` x the robot's edge resolution; with ``meshes``, PyBullet's mesh
     check too, every ``mesh_step`` rad along the path."""
@@ -48,8 +49,14 @@ def check_path(
     p = np.asarray(path, float)
     if p.ndim != 2 or p.shape[1] != robot.dof or not np.all(np.isfinite(p)):
         return PathCheck(False, f"path has shape {p.shape} or non-finite values")
-    if np.abs(p[0] - start).max() > 1e-6 or np.abs(p[-1] - goal).max() > 1e-6:
-        return PathCheck(False, "path does not start at the start and end at the goal")
+    goals = np.asarray(goal, float)
+    goals = goals[None] if goals.ndim == 1 else goals
+    if goals.ndim != 2 or goals.shape[1] != robot.dof or not len(goals):
+        return PathCheck(False, f"goals have shape {goals.shape}, not (G >= 1, {robot.dof})")
+    end_gap = np.abs(goals - p[-1]).max(axis=1).min()  # rad, to the nearest goal
+    if np.abs(p[0] - start).max() > 1e-6 or not end_gap <= 1e-6:
+        which = "the goal" if len(goals) == 1 else f"one of the {len(goals)} goals"
+        return PathCheck(False, f"path does not start at the start and end at {which}")
     checker = SphereCollisionChecker(
         robot, spheres, world, resolution=robot.config.edge_resolution * resolution_factor
     )

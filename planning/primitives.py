@@ -2,10 +2,25 @@
 
 Distances are signed: negative inside an obstacle. Poses are ``T_world_obstacle`` (4, 4);
 a cylinder's axis is its local z.
+
+:meth:`PrimitiveWorld.from_dict` reads obstacles as problem files write them (every key
+checked, see :mod:`planning.problem`)::
+
+    {type: box, size: [x, y, z], pose: POSE}            # full edge lengths (m)
+    {type: cylinder, radius: r, height: h, pose: POSE}  # m; axis along the local z
+    {type: sphere, radius: r, center: [x, y, z]}        # m
+
+where ``POSE`` is ``{xyz: [x, y, z], quat_xyzw: [x, y, z, w]}`` or ``{xyz: [x, y, z],
+rpy: [roll, pitch, yaw]}``: metres, and radians about the fixed axes x, then y, then z (as
+URDF: ``R = Rz(yaw) Ry(pitch) Rx(roll)``). A quaternion's norm must be within
+``QUAT_NORM_TOL`` of 1 (rounded values pass); it is normalized. Every number is finite and
+every length > 0.
 """
 
 from __future__ import annotations
 
+import math
+import reprlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -13,14 +28,59 @@ import numpy as np
 import numpy.typing as npt
 
 from core.errors import PlanningError
-from core.transforms import from_xyz_quat, is_rigid, to_xyz_quat
+from core.transforms import to_xyz_quat
 
 Array = npt.NDArray[np.float64]
 
+QUAT_NORM_TOL = 1e-3  # |norm - 1| a file's quaternion may have (6 printed digits pass)
+_RIGID_TOL = 1e-6  # orthonormality and det of a pose's rotation
+OBSTACLE_KEYS: dict[str, tuple[str, ...]] = {
+    "box": ("type", "size", "pose"),
+    "cylinder": ("type", "radius", "height", "pose"),
+    "sphere": ("type", "radius", "center"),
+}
+POSE_KEYS = ("xyz", "quat_xyzw", "rpy")
+_POSE_FORMS = "{xyz: [x, y, z], quat_xyzw: [x, y, z, w]} or {xyz: [x, y, z], rpy: [r, p, y]}"
+
+_short = reprlib.Repr()
+_short.maxlevel, _short.maxlist, _short.maxdict, _short.maxstring = 2, 8, 4, 40
+
+
+def show(value: Any) -> str:
+    """A short one-line rendering of a value read from a file, for error messages (bounded
+    however large or deeply nested the value is)."""
+    return "null" if value is None else _short.repr(value)
+
 
 def _check_pose(pose: Array, what: str) -> None:
-    if not is_rigid(pose):
+    # In plain floats: numpy's calls on a 4x4 (core.transforms.is_rigid) cost 4x more than
+    # the arithmetic, and every obstacle of every problem file passes here.
+    try:
+        T = np.asarray(pose, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise PlanningError(f"{what}: pose must be a 4x4 rigid transform") from err
+    values = T.ravel().tolist()
+    ok = T.shape == (4, 4) and all(map(math.isfinite, values))
+    if ok:
+        a, b, c, _, d, e, f, _, g, h, i, _, l0, l1, l2, l3 = values
+        det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+        # |R^T R - I| entry by entry (columns (a, d, g), (b, e, h), (c, f, i))
+        worst = max(
+            abs(a * a + d * d + g * g - 1.0), abs(b * b + e * e + h * h - 1.0),
+            abs(c * c + f * f + i * i - 1.0), abs(a * b + d * e + g * h),
+            abs(a * c + d * f + g * i), abs(b * c + e * f + h * i),
+            abs(det - 1.0), abs(l0), abs(l1), abs(l2), abs(l3 - 1.0),
+        )  # fmt: skip
+        ok = worst < _RIGID_TOL
+    if not ok:
         raise PlanningError(f"{what}: pose must be a 4x4 rigid transform")
+
+
+def _finite_positive(x: Any) -> bool:
+    try:
+        return math.isfinite(x) and x > 0
+    except (TypeError, ValueError, OverflowError):
+        return False
 
 
 @dataclass(frozen=True)
@@ -29,8 +89,14 @@ class Box:
     pose: Array = field(default_factory=lambda: np.eye(4))  # T_world_box, centre of the box
 
     def __post_init__(self) -> None:
-        if np.asarray(self.size).shape != (3,) or np.any(np.asarray(self.size) <= 0):
-            raise PlanningError(f"box size must be 3 positive lengths (m), got {self.size}")
+        size = np.asarray(self.size)
+        if (
+            size.shape != (3,)
+            or size.dtype.kind not in "iuf"
+            or not np.isfinite(size).all()
+            or (size <= 0).any()
+        ):
+            raise PlanningError(f"box size must be 3 finite lengths > 0 (m), got {self.size}")
         _check_pose(self.pose, "box")
 
 
@@ -41,9 +107,10 @@ class Cylinder:
     pose: Array = field(default_factory=lambda: np.eye(4))
 
     def __post_init__(self) -> None:
-        if self.radius <= 0 or self.height <= 0:
+        if not (_finite_positive(self.radius) and _finite_positive(self.height)):
             raise PlanningError(
-                f"cylinder radius and height must be > 0 m, got {self.radius}, {self.height}"
+                "cylinder radius and height must be finite and > 0 m, "
+                f"got {self.radius}, {self.height}"
             )
         _check_pose(self.pose, "cylinder")
 
@@ -54,8 +121,11 @@ class Sphere:
     center: Array  # (3,) m, world frame
 
     def __post_init__(self) -> None:
-        if self.radius <= 0:
-            raise PlanningError(f"sphere radius must be > 0 m, got {self.radius}")
+        if not _finite_positive(self.radius):
+            raise PlanningError(f"sphere radius must be finite and > 0 m, got {self.radius}")
+        center = np.asarray(self.center)
+        if center.shape != (3,) or center.dtype.kind not in "iuf" or not np.isfinite(center).all():
+            raise PlanningError(f"sphere center must be 3 finite coordinates (m), got {center}")
 
 
 Primitive = Box | Cylinder | Sphere
@@ -163,29 +233,168 @@ class PrimitiveWorld:
         return out
 
     @staticmethod
-    def from_dict(items: list[dict[str, Any]]) -> PrimitiveWorld:
-        prims: list[Primitive] = []
-        for i, item in enumerate(items):
-            try:
-                kind = item["type"]
-                if kind == "sphere":
-                    prims.append(Sphere(float(item["radius"]), np.asarray(item["center"], float)))
-                    continue
-                pose_raw = item.get("pose") or {}
-                pose = from_xyz_quat(
-                    pose_raw.get("xyz", [0, 0, 0]), pose_raw.get("quat_xyzw", [0, 0, 0, 1])
-                )
-                if kind == "box":
-                    prims.append(Box(np.asarray(item["size"], float), pose))
-                elif kind == "cylinder":
-                    prims.append(Cylinder(float(item["radius"]), float(item["height"]), pose))
-                else:
-                    raise PlanningError(
-                        f"obstacle {i}: unknown type '{kind}'; valid: box, cylinder, sphere"
-                    )
-            except (KeyError, TypeError, ValueError) as err:
-                raise PlanningError(f"obstacle {i} is malformed ({err!r}): {item}") from err
-        return PrimitiveWorld(prims)
+    def from_dict(items: Any) -> PrimitiveWorld:
+        """The world of a list of obstacles in the layout of the module docstring.
+        PlanningError naming the obstacle (``obstacles[2].pose.rpy``), the field and what is
+        valid for anything else: unknown or missing keys, non-numbers, NaN/inf, lengths
+        <= 0, a quaternion that is not unit."""
+        if not isinstance(items, list):
+            raise PlanningError(
+                f"obstacles: must be a list of obstacles ([] for none), got {show(items)}"
+            )
+        return PrimitiveWorld([_primitive(item, f"obstacles[{i}]") for i, item in enumerate(items)])
+
+
+# -- reading obstacles -------------------------------------------------------------------
+
+
+def _primitive(item: Any, where: str) -> Primitive:
+    kinds = ", ".join(OBSTACLE_KEYS)
+    if not isinstance(item, dict):
+        raise PlanningError(
+            f"{where}: an obstacle must be a mapping with a type ({kinds}), got {show(item)}"
+        )
+    kind = item.get("type")
+    if kind not in OBSTACLE_KEYS:
+        if "type" not in item:
+            raise PlanningError(f"{where}: missing 'type'; valid: {kinds}")
+        raise PlanningError(f"{where}.type: unknown type {show(kind)}; valid: {kinds}")
+    _check_keys(item, OBSTACLE_KEYS[kind], where, f"a {kind}")
+    if kind == "sphere":
+        return Sphere(
+            _positive(item["radius"], f"{where}.radius"),
+            np.array(_numbers(item["center"], 3, f"{where}.center", "x, y, z in m")),
+        )
+    pose = _pose(item["pose"], f"{where}.pose")
+    if kind == "box":
+        size = _numbers(item["size"], 3, f"{where}.size", "full edge lengths in m")
+        for axis, x in zip("xyz", size, strict=True):
+            if x <= 0:
+                raise PlanningError(f"{where}.size: lengths must be > 0 m, got {x} along {axis}")
+        return Box(np.array(size), pose)
+    return Cylinder(
+        _positive(item["radius"], f"{where}.radius"),
+        _positive(item["height"], f"{where}.height"),
+        pose,
+    )
+
+
+def _check_keys(item: dict[Any, Any], valid: tuple[str, ...], where: str, what: str) -> None:
+    """PlanningError for keys of ``item`` outside ``valid`` (listing the valid ones), or for
+    a missing one (all of ``valid`` are required)."""
+    unknown = [k for k in item if k not in valid]
+    if unknown:
+        hint = ""
+        if any(
+            str(k).startswith(("position", "orientation", "quat", "rpy", "xyz")) for k in unknown
+        ):
+            hint = f" (a pose is written pose: {_POSE_FORMS})"
+        names = ", ".join(show(k) for k in unknown)
+        raise PlanningError(
+            f"{where}: unknown key{'s' * (len(unknown) > 1)} {names}; valid for {what}: "
+            f"{', '.join(valid)}{hint}"
+        )
+    missing = [k for k in valid if k not in item]
+    if missing:
+        raise PlanningError(
+            f"{where}: missing {', '.join(repr(k) for k in missing)}; {what} needs {', '.join(valid)}"
+        )
+
+
+def number(value: Any, where: str) -> float:
+    """``value`` as a finite float; PlanningError unless it is a finite int or float."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise PlanningError(f"{where}: must be a number, got {show(value)}")
+    try:
+        x = float(value)
+    except OverflowError as err:
+        raise PlanningError(f"{where}: must be a finite number, got {show(value)}") from err
+    if not math.isfinite(x):
+        raise PlanningError(f"{where}: must be a finite number, got {x}")
+    return x
+
+
+def _numbers(value: Any, n: int, where: str, what: str) -> list[float]:
+    if not isinstance(value, list | tuple) or len(value) != n:
+        raise PlanningError(f"{where}: must be {n} numbers ({what}), got {show(value)}")
+    return numbers(value, where)
+
+
+def numbers(values: list[Any] | tuple[Any, ...], where: str) -> list[float]:
+    """``values`` as finite floats; PlanningError naming the first bad one (``where[i]``)."""
+    # The common case in one pass (exact types: a bool is an int but not a number here).
+    if all(type(v) is float or type(v) is int for v in values):
+        try:
+            out = list(map(float, values))
+        except OverflowError:  # an int beyond float's range; named below
+            pass
+        else:
+            if all(map(math.isfinite, out)):
+                return out
+    return [number(v, f"{where}[{i}]") for i, v in enumerate(values)]
+
+
+def _positive(value: Any, where: str) -> float:
+    x = number(value, where)
+    if x <= 0:
+        raise PlanningError(f"{where}: must be > 0 m, got {x}")
+    return x
+
+
+def _pose(raw: Any, where: str) -> Array:
+    """T_world_obstacle (4, 4) of a pose mapping (module docstring)."""
+    if not isinstance(raw, dict):
+        raise PlanningError(f"{where}: must be {_POSE_FORMS}, got {show(raw)}")
+    unknown = [k for k in raw if k not in POSE_KEYS]
+    if unknown:
+        names = ", ".join(show(k) for k in unknown)
+        raise PlanningError(
+            f"{where}: unknown key{'s' * (len(unknown) > 1)} {names}; valid: xyz and one of "
+            f"quat_xyzw, rpy: {_POSE_FORMS}"
+        )
+    if "xyz" not in raw:
+        raise PlanningError(f"{where}: missing 'xyz' (position, m); a pose is {_POSE_FORMS}")
+    if ("quat_xyzw" in raw) == ("rpy" in raw):
+        which = "both quat_xyzw and rpy" if "rpy" in raw else "no orientation"
+        raise PlanningError(
+            f"{where}: has {which}; give the orientation once: quat_xyzw [x, y, z, w] or rpy "
+            "[roll, pitch, yaw] (rad, fixed axes x, y, z)"
+        )
+    x, y, z = _numbers(raw["xyz"], 3, f"{where}.xyz", "position in m")
+    if "rpy" in raw:
+        R = _rpy_matrix(*_numbers(raw["rpy"], 3, f"{where}.rpy", "roll, pitch, yaw in rad"))
+    else:
+        q = _numbers(raw["quat_xyzw"], 4, f"{where}.quat_xyzw", "a unit quaternion x, y, z, w")
+        norm = math.sqrt(sum(c * c for c in q))
+        if abs(norm - 1.0) > QUAT_NORM_TOL:
+            raise PlanningError(
+                f"{where}.quat_xyzw: must be a unit quaternion (norm within {QUAT_NORM_TOL} "
+                f"of 1), got norm {norm:.6g}"
+            )
+        R = _quat_matrix(*(c / norm for c in q))
+    return np.array([[*R[0], x], [*R[1], y], [*R[2], z], [0.0, 0.0, 0.0, 1.0]])
+
+
+def _quat_matrix(x: float, y: float, z: float, w: float) -> list[list[float]]:
+    """Rotation matrix of a unit quaternion (x, y, z, w), in plain floats (one obstacle's
+    numpy or scipy call costs more than this)."""
+    return [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ]
+
+
+def _rpy_matrix(roll: float, pitch: float, yaw: float) -> list[list[float]]:
+    """Rz(yaw) Ry(pitch) Rx(roll): URDF's fixed-axis roll, pitch, yaw (rad)."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
 
 
 def primitive_mesh(p: Primitive):  # type: ignore[no-untyped-def]

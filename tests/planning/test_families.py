@@ -77,11 +77,11 @@ def test_problem_file_round_trip(robot: RobotModel, spheres: SphereModel, tmp_pa
     ("text", "message"),
     [
         ("problems: []", "non-empty 'problems' list"),
-        ("problems: [{start: [0, 0], goal: [0, 0], obstacles: []}]", "start must be 6 finite"),
+        ("problems: [{start: [0, 0], goal: [0, 0], obstacles: []}]", "start: must be 6 finite"),
         ("problems: [{start: [0,0,0,0,0,0], goal: [0,0,0,0,0,0]}]", "missing 'obstacles'"),
         (
             "problems: [{start: [0,0,0,0,0,0], goal: [0,0,0,0,0,0], obstacles: [], difficulty: hard}]",
-            "difficulty 'hard'",
+            "difficulty: 'hard' is not one of",
         ),
         (
             "problems: [{start: [0,0,0,0,0,0], goal: [0,0,0,0,0,0], obstacles: [{type: cone}]}]",
