@@ -11,7 +11,20 @@ from typing import Any
 from planning.checker import CHECKERS, DEFAULT_CHECKER
 from planning.robot_setup import robot_and_spheres
 
-__all__ = ["add_checker_option", "print_table", "robot_and_spheres", "write_json"]
+__all__ = ["add_checker_option", "print_table", "robot_and_spheres", "seed", "write_json"]
+
+
+def seed(text: str) -> int:
+    """An argparse type: a random seed, a whole number from 0 to 2^63 - 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(
+            f"invalid seed {text!r}: give a whole number from 0 to 2^63 - 1"
+        )
+    return value
 
 
 def add_checker_option(parser: argparse.ArgumentParser) -> None:

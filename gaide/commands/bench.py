@@ -13,7 +13,7 @@ from tqdm import tqdm
 
 from core.errors import ConfigError
 from gaide.commands.execution import add_bench_parser
-from gaide.common import add_checker_option, print_table, robot_and_spheres, write_json
+from gaide.common import add_checker_option, print_table, robot_and_spheres, seed, write_json
 from planning.bench_collision import CollisionBenchCfg, run_collision_benchmark
 
 
@@ -24,14 +24,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     col.add_argument("--robot", help="robot config YAML (default: UR5)")
     col.add_argument("--json", help="write the figures to this JSON file")
     col.add_argument("--quick", action="store_true", help="small sizes (a smoke test)")
-    col.add_argument("--seed", type=int, default=0)
+    col.add_argument("--seed", type=seed, default=0)
     add_checker_option(col)
     col.set_defaults(func=cmd_collision)
     per = bsub.add_parser("perception", help="calibration and cloud accuracy on synthetic bags")
     per.add_argument("--robot", help="robot config YAML (default: UR5)")
     per.add_argument("--json", help="write the figures to this JSON file")
     per.add_argument("--quick", action="store_true", help="fewer frames and poses (a smoke test)")
-    per.add_argument("--seed", type=int, default=0)
+    per.add_argument("--seed", type=seed, default=0)
     per.set_defaults(func=cmd_perception)
     pla = bsub.add_parser("planning", help="planners on the task families (the paper's Table I)")
     pla.add_argument("--families", default="all", help="comma-separated families or 'all'")

@@ -14,7 +14,7 @@ import numpy as np
 from tqdm import tqdm
 
 from core.errors import ConfigError, PlanningError
-from gaide.common import add_checker_option, print_table, robot_and_spheres, write_json
+from gaide.common import add_checker_option, print_table, robot_and_spheres, seed, write_json
 from planning.families import FAMILIES, generate_problem, parse_families, split_seed
 
 
@@ -61,7 +61,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     tr.add_argument("--steps", type=int, default=3000)
     tr.add_argument("--batch", type=int, default=128)
     tr.add_argument("--lr", type=float, default=1e-3)
-    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--seed", type=seed, default=0)
     tr.add_argument("--val-every", type=int, default=250, help="steps between loss records")
     tr.add_argument("--device", default="auto", help="auto (CUDA if present), cpu or cuda[:N]")
     tr.add_argument(
@@ -86,7 +86,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     src = pl.add_mutually_exclusive_group(required=True)
     src.add_argument("--scene", help="scene cloud (.ply, base frame)")
     src.add_argument("--family", choices=FAMILIES, help="a generated task-family problem")
-    pl.add_argument("--seed", type=int, help="problem seed (default: the first test seed)")
+    pl.add_argument("--seed", type=seed, help="problem seed (default: the first test seed)")
     pl.add_argument("--start", help="start configuration: comma-separated rad, or a named one")
     pl.add_argument("--goal", help="goal configuration: comma-separated rad, or a named one")
     pl.add_argument(

@@ -7,7 +7,7 @@ import argparse
 import numpy as np
 from tqdm import tqdm
 
-from gaide.common import robot_and_spheres
+from gaide.common import robot_and_spheres, seed
 from gaide.synthetic.record import record_scene
 from gaide.synthetic.scene import fixed_scene, hand_eye_scene
 from perception.frames import BagLayout
@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     p.add_argument("--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS2 storage")
     p.add_argument("--frames", type=int, default=5, help="frames (fixed) or robot poses (hand-eye)")
     p.add_argument("--robot", help="robot config YAML (default: UR5)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed, default=0)
     p.set_defaults(func=cmd_record)
 
 

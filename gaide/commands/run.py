@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from gaide.common import print_table
+from gaide.common import print_table, seed
 from gaide.pipeline.config import RunCfg
 from gaide.pipeline.config_io import dump_cfg, load_cfg, parse_assignment
 from gaide.pipeline.runner import StageRecord, StageRunner
@@ -50,7 +50,7 @@ def add_setting_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--checkpoint", help="weights for a neural planner")
     p.add_argument("--budget", type=float, help="planning seconds per attempt")
     p.add_argument("--attempts", type=int, help="planning attempts")
-    p.add_argument("--seed", type=int, help="random seed")
+    p.add_argument("--seed", type=seed, help="random seed")
     p.add_argument(
         "--checker", choices=["compiled", "numpy"], help="collision checker (default compiled)"
     )

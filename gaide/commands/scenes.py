@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gaide.common import print_table, robot_and_spheres
+from gaide.common import print_table, robot_and_spheres, seed
 from gaide.pictures import render_meshes_png
 from planning.families import (
     FAMILIES,
@@ -26,7 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     ssub = p.add_subparsers(dest="scenes_cmd", required=True)
     show = ssub.add_parser("show", help="draw a problem's scene with its start and goal poses")
     show.add_argument("family", choices=FAMILIES)
-    show.add_argument("--seed", type=int, help="problem seed (default: the first test seed)")
+    show.add_argument("--seed", type=seed, help="problem seed (default: the first test seed)")
     show.add_argument(
         "--view",
         choices=["surface", "camera"],
