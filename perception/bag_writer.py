@@ -65,6 +65,7 @@ from perception.frames import BagLayout, Frames, ImageStream, JointStates
 logger = logging.getLogger(__name__)
 
 STORAGES = ("sqlite3", "mcap")
+COMPRESSIONS = ("lz4", "bz2", "none")  # ROS1 chunk compression
 SDK_DEVICE = "/device_0"
 SDK_STREAMS = {"depth": "/device_0/sensor_0/Depth_0", "color": "/device_0/sensor_1/Color_0"}
 SDK_DEPTH_UNITS = "/device_0/sensor_0/option/Depth Units/value"
@@ -84,6 +85,8 @@ def write_bag(
     storage: str = "sqlite3",
     namespace: str | None = None,
     aligned_depth: bool = False,
+    compression: str = "lz4",
+    chunk_bytes: int | None = None,
 ) -> Path:
     """Write ``frames`` as a bag in ``layout``.
 
@@ -98,6 +101,11 @@ def write_bag(
         namespace: realsense-ros topic prefix (default ``/camera``); not used by the SDK layout.
         aligned_depth: realsense-ros only: write depth as ``aligned_depth_to_color`` (depth in
             the color camera's pixels: same intrinsics as color, ``T_color_depth`` identity).
+        compression: ROS1 only: chunk compression, ``"lz4"`` (as the RealSense SDK writes),
+            ``"bz2"`` or ``"none"``.
+        chunk_bytes: ROS1 only: a chunk is closed once it holds more than this many
+            uncompressed bytes (1 puts each message in a chunk of its own); None for rosbags'
+            default (1 MiB).
 
     Returns:
         The path written.
@@ -108,6 +116,7 @@ def write_bag(
     """
     path = Path(path)
     _check_arguments(path, layout, ros_version, storage, namespace, aligned_depth)
+    _check_chunks(ros_version, compression, chunk_bytes)
     _check_frames(frames)
     builder = MessageBuilder(ros_version)
     if layout is BagLayout.SDK:
@@ -122,7 +131,7 @@ def write_bag(
     staging = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent))
     try:
         staged = staging / path.name
-        _write_messages(staged, messages, builder, storage)
+        _write_messages(staged, messages, builder, storage, compression, chunk_bytes)
         if path.exists():
             raise BagError(f"{path} appeared while writing; not overwriting it")
         os.rename(staged, path)
@@ -175,6 +184,22 @@ def _check_arguments(
     if namespace is not None and not _ROS_NAMESPACE.match(namespace):
         raise BagError(
             f"namespace must be a ROS name such as '/camera' or '/camera/camera', got {namespace!r}"
+        )
+
+
+def _check_chunks(ros_version: int, compression: str, chunk_bytes: int | None) -> None:
+    if compression not in COMPRESSIONS:
+        raise BagError(f"compression must be one of {list(COMPRESSIONS)}, got {compression!r}")
+    if chunk_bytes is not None and (
+        isinstance(chunk_bytes, bool) or not isinstance(chunk_bytes, int) or chunk_bytes < 1
+    ):
+        raise BagError(
+            f"chunk_bytes must be a positive number of bytes or None, got {chunk_bytes!r}"
+        )
+    if ros_version == 2 and (compression != "lz4" or chunk_bytes is not None):
+        raise BagError(
+            "compression and chunk_bytes apply to ROS1 bags only; a ROS2 bag's storage "
+            "(sqlite3 or mcap) has no chunks to set"
         )
 
 
@@ -375,14 +400,25 @@ def _joint_messages(js: JointStates | None, b: MessageBuilder, start: int) -> li
     return out.items
 
 
-def _write_messages(path: Path, messages: list[Message], b: MessageBuilder, storage: str) -> None:
+def _write_messages(
+    path: Path,
+    messages: list[Message],
+    b: MessageBuilder,
+    storage: str,
+    compression: str,
+    chunk_bytes: int | None,
+) -> None:
     """Write sorted messages into a new bag at ``path`` with rosbags' writers."""
     typestore = b.typestore
     connections: dict[str, Any] = {}
     if b.ros_version == 1:
         bag1 = Writer1(path)
-        # LZ4 chunks, as the RealSense SDK writes them: depth and color compress ~3-5x.
-        bag1.set_compression(Writer1.CompressionFormat.LZ4)
+        # LZ4 chunks by default, as the RealSense SDK writes them: depth and color compress
+        # ~3-5x.
+        if compression != "none":
+            bag1.set_compression(Writer1.CompressionFormat[compression.upper()])
+        if chunk_bytes is not None:
+            bag1.chunk_threshold = chunk_bytes
         with bag1 as writer1:
             for m in messages:
                 if m.topic not in connections:

@@ -12,6 +12,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+from rosbags.rosbag1 import Reader
+from rosbags.rosbag1.reader import decompressors
 
 import perception.bag_builder as bag_builder
 import perception.bag_writer as bag_writer
@@ -59,7 +61,53 @@ def test_round_trip_without_extrinsics_or_joints(
     path = write_bag(
         bag_path(tmp_path, "bare", ros), frames, layout=layout, ros_version=ros, storage=storage
     )
-    assert_frames_equal(read_bag(path), frames)
+    with pytest.raises(BagError, match="no depth-to-color extrinsics"):
+        read_bag(path)
+    assumed = dataclasses.replace(frames, T_color_depth=np.eye(4))
+    assert_frames_equal(read_bag(path, default_extrinsics=True), assumed)
+
+
+@pytest.mark.parametrize("compression", ["lz4", "bz2", "none"])
+def test_ros1_compression_and_chunk_size(
+    tmp_path: Path, rng: np.random.Generator, compression: str
+) -> None:
+    frames = make_frames(rng, n_depth=3, n_color=2)
+    big = write_bag(tmp_path / "big.bag", frames, layout=BagLayout.SDK, compression=compression)
+    small = write_bag(
+        tmp_path / "small.bag",
+        frames,
+        layout=BagLayout.SDK,
+        compression=compression,
+        chunk_bytes=1,
+    )
+    counts: dict[str, int] = {}
+    for path in (big, small):
+        assert_frames_equal(read_bag(path), frames)
+        with Reader(path) as reader:
+            used = {reader.chunks[c.pos].decompressor for c in reader.chunk_infos}
+            assert used == {decompressors[compression]}
+            counts[path.name] = len(reader.chunk_infos)
+            messages = reader.message_count
+    assert counts == {"big.bag": 1, "small.bag": messages}  # one message per chunk
+
+
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        ({"compression": "zstd"}, r"compression must be one of \['lz4', 'bz2', 'none'\]"),
+        ({"chunk_bytes": 0}, "chunk_bytes must be a positive number of bytes"),
+        ({"chunk_bytes": 1.5}, "chunk_bytes must be a positive number of bytes"),
+        ({"ros_version": 2, "chunk_bytes": 1024}, "apply to ROS1 bags only"),
+        ({"ros_version": 2, "compression": "bz2"}, "apply to ROS1 bags only"),
+    ],
+)
+def test_bad_chunk_arguments(
+    tmp_path: Path, rng: np.random.Generator, kwargs: dict[str, Any], match: str
+) -> None:
+    name = "x" if kwargs.get("ros_version") == 2 else "x.bag"
+    with pytest.raises(BagError, match=match):
+        write_bag(tmp_path / name, make_frames(rng), layout=BagLayout.SDK, **kwargs)
+    assert not (tmp_path / name).exists()
 
 
 @pytest.mark.parametrize("ros", [1, 2])
