@@ -8,6 +8,11 @@ depth-to-color extrinsics ``T_color_depth`` and any joint states. Every bad inpu
 
 Stamps are the messages' ``header.stamp`` (ns), or the bag's log time where a driver left the
 header stamp at zero; the time window selects on the same stamps that are returned.
+
+Damaged ROS1 bags are read as far as they are intact (``perception.rosbag1_reader``): corrupt
+chunks are skipped, a missing or cut-off index is rebuilt from the complete chunks. The loss is
+logged as one warning; when what is left lacks something needed (a stream's frames, its
+camera_info, the depth units, the extrinsics) the ``BagError`` says so and names the damage.
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from core.errors import BagError
+from perception.bag_damage import BagDamage
+from perception.bag_extrinsics import T_color_depth
 from perception.bag_layout import (
     CAMERA_INFO,
     WRAPPER_DEPTH_UNITS,
@@ -36,11 +43,10 @@ from perception.bag_messages import (
     decode_camera_info,
     decode_float32,
     decode_joint_state,
-    decode_transform,
 )
 from perception.bag_scan import STREAMS, Scan, library_errors, scan
-from perception.bag_tf import lookup_static, rs_extrinsics_T, sdk_T_color_depth
 from perception.frames import Array, BagLayout, Frames, ImageStream, JointStates
+from perception.rosbag1_reader import RecoveringReader
 
 logger = logging.getLogger(__name__)
 
@@ -63,6 +69,7 @@ def read_bag(
     max_frames: int | None = None,
     depth_units: float | None = None,
     namespace: str | None = None,
+    default_extrinsics: bool = False,
 ) -> Frames:
     """Read a RealSense recording.
 
@@ -77,21 +84,25 @@ def read_bag(
             realsense-ros millimetre convention. Required when the bag does not record them.
         namespace: camera topic prefix (``/device_0``, ``/camera``, ``/camera/camera``) when
             the bag holds several cameras.
+        default_extrinsics: when the bag records no depth-to-color extrinsics, assume the
+            RealSense SDK's default (identity) with a warning instead of refusing the bag.
+            Off by default: the identity misplaces depth by the imagers' baseline (~15 mm).
 
     Returns:
         Frames with depth (H, W) uint16 and color (H, W, 3) uint8 RGB images, stamps in ns,
         depth units in m per unit, ``T_color_depth`` (depth optical frame in color optical
-        frame; None if the bag records no extrinsics) and joint states (all of them, not
-        windowed, so that every frame has its nearest state).
+        frame; None if the bag records no extrinsics and only one stream is read) and joint
+        states (all of them, not windowed, so that every frame has its nearest state).
 
     Raises:
-        BagError: the path is missing or not a bag, the bag is truncated or corrupt, a
-            required stream, its camera_info or the depth units are missing, or the window
-            holds no frame.
+        BagError: the path is missing or not a bag, a required stream, its camera_info, the
+            depth units or (reading both streams) the extrinsics are missing (also when they
+            were lost to damage: the message then says what was lost), or the window holds no
+            frame.
     """
     path = Path(path)
     wanted = _check_arguments(streams, start_ns, end_ns, max_frames, depth_units)
-    reader = _open(path)
+    reader, damage = _open(path)
     try:
         topics = {name: info.msgtype for name, info in reader.topics.items()}
         layout = detect_layout(topics, namespace)
@@ -102,9 +113,25 @@ def read_bag(
                     f"{layout.namespace!r}; image topics in the bag: {image_topics(topics)}"
                 )
         collected = scan(reader, path, layout, wanted, start_ns, end_ns, max_frames)
-        frames = _assemble(path, topics, layout, wanted, collected, depth_units, start_ns, end_ns)
+        frames = _assemble(
+            path,
+            topics,
+            layout,
+            wanted,
+            collected,
+            depth_units,
+            (start_ns, end_ns),
+            default_extrinsics=default_extrinsics,
+        )
+    except BagError as err:
+        if damage is not None and damage.damaged:
+            # What is left is not enough: one error that says why, no warning beside it.
+            raise BagError(f"{err}; the bag is damaged: {damage.summary()}") from err
+        raise
     finally:
         reader.close()
+    if damage is not None and damage.damaged:
+        logger.warning("%s: damaged bag, read what is intact: %s", path, damage.summary())
     logger.info(
         "read %s (%s layout): %d depth, %d color frames, %s joint states",
         path,
@@ -137,8 +164,9 @@ def _check_arguments(
     return wanted
 
 
-def _open(path: Path) -> Any:
-    """An open AnyReader on ``path``, or BagError saying why it is not a bag."""
+def _open(path: Path) -> tuple[Any, BagDamage | None]:
+    """An open AnyReader on ``path`` and, for a ROS1 bag, the account of its damage; or
+    BagError saying why it is not a bag."""
     if not path.exists():
         raise BagError(f"{path}: no such file or folder; expected {VALID_INPUT}")
     if path.is_file() and path.suffix not in BAG_SUFFIXES:
@@ -147,15 +175,21 @@ def _open(path: Path) -> Any:
         )
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise BagError(f"{path}: folder has no metadata.yaml, so it is not a ROS2 bag folder")
+    damage = None
     try:
         reader = AnyReader([path], default_typestore=_default_typestore())
+        if not reader.is2:
+            # The ROS1 reader that skips corrupt chunks and rebuilds a missing index.
+            recovering = RecoveringReader(path)
+            reader.readers = [recovering]
+            damage = recovering.damage
         reader.open()
     except library_errors() as err:
         raise BagError(
             f"{path}: cannot open as a bag ({type(err).__name__}: {err}); it is corrupt, "
             f"truncated or not a bag. Expected {VALID_INPUT}"
         ) from err
-    return reader
+    return reader, damage
 
 
 def _assemble(
@@ -165,9 +199,11 @@ def _assemble(
     wanted: tuple[str, ...],
     got: Scan,
     depth_units: float | None,
-    start_ns: int | None,
-    end_ns: int | None,
+    window: tuple[int | None, int | None],
+    *,
+    default_extrinsics: bool,
 ) -> Frames:
+    start_ns, end_ns = window
     streams: dict[str, ImageStream | None] = {k: None for k in STREAMS}
     for kind in wanted:
         stream_topics: StreamTopics = getattr(layout, kind)
@@ -187,7 +223,7 @@ def _assemble(
         depth=streams["depth"],
         color=streams["color"],
         depth_units=units,
-        T_color_depth=_extrinsics(path, layout, got),
+        T_color_depth=T_color_depth(path, layout, wanted, got, default=default_extrinsics),
         joint_states=_joint_states(path, layout, got),
     )
 
@@ -250,62 +286,6 @@ def _depth_units(
             "be assumed only if you pass it"
         )
     return recorded
-
-
-def _extrinsics(path: Path, layout: TopicMap, got: Scan) -> Array | None:
-    """``T_color_depth`` (see ``perception.bag_tf`` for each layout's convention)."""
-    if layout.aligned_depth:
-        return np.eye(4)
-    if layout.layout is BagLayout.SDK:
-        depth, color = layout.depth, layout.color
-        if depth is None or color is None:
-            return None  # extrinsics relate two streams
-        if depth.tf not in got.first or color.tf not in got.first:
-            logger.warning(
-                "%s: no SDK tf topics for both depth and color; extrinsics unknown", path
-            )
-            return None
-        if depth.reference != color.reference:
-            logger.warning(
-                "%s: depth and color extrinsics have different references (%s, %s); unknown",
-                path,
-                depth.tf,
-                color.tf,
-            )
-            return None
-        return sdk_T_color_depth(
-            decode_transform(got.first[depth.tf], depth.tf),
-            decode_transform(got.first[color.tf], color.tf),
-        )
-    if layout.extrinsics is not None and layout.extrinsics in got.first:
-        msg = got.first[layout.extrinsics]
-        return rs_extrinsics_T(msg.rotation, msg.translation, layout.extrinsics)
-    if layout.depth is None or layout.color is None:
-        return None
-    frames = {k: _frame_id(layout, k, got) for k in STREAMS}
-    if got.tf_edges and frames["depth"] and frames["color"]:
-        T = lookup_static(got.tf_edges, target=frames["color"], source=frames["depth"])
-        if T is not None:
-            return T
-    logger.warning(
-        "%s: no depth-to-color extrinsics (no %s/extrinsics/depth_to_color, and /tf_static "
-        "does not link %r to %r); T_color_depth is unknown",
-        path,
-        layout.namespace,
-        frames["depth"],
-        frames["color"],
-    )
-    return None
-
-
-def _frame_id(layout: TopicMap, kind: str, got: Scan) -> str:
-    """The optical frame of a stream: its image header's, else its camera_info header's."""
-    if got.frame_ids.get(kind):
-        return got.frame_ids[kind]
-    stream: StreamTopics | None = getattr(layout, kind)
-    if stream is not None and stream.camera_info in got.first:
-        return str(got.first[stream.camera_info].header.frame_id)
-    return ""
 
 
 def _joint_states(path: Path, layout: TopicMap, got: Scan) -> JointStates | None:

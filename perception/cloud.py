@@ -19,7 +19,7 @@ import open3d as o3d
 from core.errors import PerceptionError
 from core.transforms import apply, is_rigid
 from perception.depth import deprojector_for, fuse_depth, project
-from perception.frames import Frames
+from perception.frames import Frames, Intrinsics
 
 Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
@@ -80,6 +80,12 @@ def remove_inside_spheres(
     return keep
 
 
+def _same_camera(a: Intrinsics, b: Intrinsics) -> bool:
+    """Whether two streams share their pixels (depth aligned to color): then the identity
+    relates them. (Intrinsics hold arrays, so ``==`` on them is no truth value.)"""
+    return (a.width, a.height) == (b.width, b.height) and np.array_equal(a.K, b.K)
+
+
 def scene_cloud(
     frames: Frames,
     T_base_cam: Array,
@@ -104,10 +110,13 @@ def scene_cloud(
         raise PerceptionError(f"{frames.source}: depth units unknown; pass them explicitly")
     T_color_depth = frames.T_color_depth
     if T_color_depth is None:
-        if frames.color is not None and frames.color.intrinsics != frames.depth.intrinsics:
+        if frames.color is not None and not _same_camera(
+            frames.color.intrinsics, frames.depth.intrinsics
+        ):
             raise PerceptionError(
                 f"{frames.source}: depth-to-color extrinsics are missing, needed to place depth "
-                "points in the calibrated color frame"
+                "points in the calibrated color frame; read the bag with "
+                "read_bag(..., default_extrinsics=True) to assume the SDK's default (identity)"
             )
         T_color_depth = np.eye(4)
     depth_m = fuse_depth(frames.depth.images[: cfg.max_frames], frames.depth_units)
@@ -171,29 +180,97 @@ def _sample_colors(pts_color: Array, image: np.ndarray, frames: Frames) -> Array
 
 
 def save_ply(path: str, cloud: SceneCloud) -> None:
-    """Write the cloud as PLY atomically (temporary file, then rename)."""
+    """Write the cloud as PLY atomically (temporary file, then rename), read back and
+    counted first: Open3D reports success for a file a full disk cut short."""
     from pathlib import Path
 
     target = Path(path)
-    tmp = target.with_name(target.stem + ".tmp.ply")
+    tmp = target.with_name(f".{target.stem}.tmp.ply")
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
     if cloud.colors is not None:
         pcd.colors = o3d.utility.Vector3dVector(cloud.colors)
-    if not o3d.io.write_point_cloud(tmp, pcd):
+    try:
+        if not o3d.io.write_point_cloud(tmp, pcd):
+            raise PerceptionError(f"cannot write {target}")
+        check_ply_complete(tmp)
+        if len(o3d.io.read_point_cloud(tmp).points) != len(cloud.points):
+            raise PerceptionError(f"cannot write {target}: the file reads back short")
+        tmp.replace(target)
+    except OSError as err:
+        raise PerceptionError(f"cannot write {target}: {err.strerror or err}") from err
+    finally:
         tmp.unlink(missing_ok=True)
-        raise PerceptionError(f"cannot write {target}")
-    tmp.replace(target)
 
 
 def load_ply(path: str) -> Array:
-    """Points (N, 3) of a PLY file; PerceptionError if missing, unreadable or empty."""
+    """Points (N, 3) of a PLY file; PerceptionError if missing, unreadable, cut short or
+    empty, or if a point is not finite."""
     from pathlib import Path
 
     source = Path(path)
     if not source.is_file():
         raise PerceptionError(f"cloud file {source} does not exist")
+    check_ply_complete(source)
     pcd = o3d.io.read_point_cloud(source)
     pts = np.asarray(pcd.points)
     if len(pts) == 0:
         raise PerceptionError(f"cloud file {source} holds no points (or is not a point cloud)")
+    if not np.isfinite(pts).all():
+        raise PerceptionError(f"cloud file {source} has points that are not finite numbers")
     return pts
+
+
+_PLY_SIZES = {
+    "char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2,
+    "uint16": 2, "int": 4, "uint": 4, "float": 4, "int32": 4, "uint32": 4, "float32": 4,
+    "double": 8, "float64": 8,
+}  # fmt: skip
+
+
+def check_ply_complete(path: object) -> None:
+    """PerceptionError unless the PLY file at ``path`` holds as many vertices as its header
+    announces. Open3D reads a file cut short without a word, the missing points as (0, 0, 0);
+    this reads the header (written by hand: it is a few lines of text, and no well-kept
+    library checks it) and compares with the file's size (binary) or lines (ASCII)."""
+    from pathlib import Path
+
+    p = Path(str(path))
+    try:
+        with p.open("rb") as f:
+            head = f.read(65536)
+        size = p.stat().st_size
+    except OSError as err:
+        raise PerceptionError(f"cloud file {p} cannot be read: {err.strerror or err}") from err
+    end = head.find(b"end_header\n")
+    if not head.startswith(b"ply") or end < 0:
+        raise PerceptionError(f"cloud file {p} is not a PLY file (no PLY header)")
+    lines = head[:end].decode("ascii", "replace").splitlines()
+    fmt = next((ln.split()[1] for ln in lines if ln.startswith("format ")), "")
+    elements: list[tuple[str, int, list[str]]] = []
+    for ln in lines:
+        words = ln.split()
+        if words[:1] == ["element"] and len(words) == 3:
+            elements.append((words[1], int(words[2]), []))
+        elif words[:1] == ["property"] and elements:
+            elements[-1][2].append(" ".join(words[1:]))
+    vertex = next((e for e in elements if e[0] == "vertex"), None)
+    if vertex is None or any(prop.startswith("list") for e in elements for prop in e[2]):
+        return  # a mesh's variable-length lists: nothing to compare with
+    body = size - (end + len(b"end_header\n"))
+    if fmt.startswith("binary"):
+        need = sum(n * sum(_PLY_SIZES.get(prop.split()[0], 0) for prop in props)
+                   for _, n, props in elements)  # fmt: skip
+        if body < need:
+            raise PerceptionError(
+                f"cloud file {p} is cut short: its header announces {vertex[1]:,} points, the "
+                f"file holds {body:,} of the {need:,} bytes they need"
+            )
+    elif fmt == "ascii":
+        with p.open("rb") as f:
+            f.seek(end + len(b"end_header\n"))
+            rows = sum(1 for line in f if line.strip())
+        if rows < sum(n for _, n, _ in elements):
+            raise PerceptionError(
+                f"cloud file {p} is cut short: its header announces {vertex[1]:,} points, it "
+                f"holds {rows:,} rows"
+            )

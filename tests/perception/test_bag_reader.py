@@ -317,16 +317,19 @@ def test_wrapper_extrinsics_message(tmp_path: Path, rng: np.random.Generator, ro
     np.testing.assert_allclose(got.T_color_depth, T_COLOR_DEPTH, atol=1e-12)
 
 
-def test_wrapper_without_extrinsics_warns(
+def test_wrapper_without_extrinsics(
     tmp_path: Path, rng: np.random.Generator, caplog: pytest.LogCaptureFixture
 ) -> None:
     frames = make_frames(rng, joints=False)
     b = MessageBuilder(1)
     path = write_raw_bag(tmp_path / "noext.bag", b, _wrapper_messages(b, frames))
-    with caplog.at_level(logging.WARNING, logger="perception.bag_reader"):
-        got = read_bag(path)
-    assert got.T_color_depth is None
+    with pytest.raises(BagError, match=r"no readable /camera/extrinsics/depth_to_color and no"):
+        read_bag(path)  # both streams: relating them needs the extrinsics
+    with caplog.at_level(logging.INFO, logger="perception"):
+        got = read_bag(path, streams=("color",))
+    assert got.T_color_depth is None  # one stream: nothing to relate, no warning
     assert "T_color_depth is unknown" in caplog.text
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
 
 
 def test_several_cameras_need_a_namespace(tmp_path: Path, rng: np.random.Generator) -> None:
@@ -336,7 +339,7 @@ def test_several_cameras_need_a_namespace(tmp_path: Path, rng: np.random.Generat
     path = write_raw_bag(tmp_path / "two", b, sorted(msgs, key=lambda m: m[2]))
     with pytest.raises(BagError, match=r"several cameras \['/left', '/right'\].*namespace="):
         read_bag(path)
-    got = read_bag(path, namespace="/right", depth_units=0.001)
+    got = read_bag(path, namespace="/right", depth_units=0.001, streams=("depth",))
     assert got.depth is not None and right.depth is not None
     np.testing.assert_array_equal(got.depth.images[0], right.depth.images[0])
 

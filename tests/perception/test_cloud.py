@@ -125,3 +125,19 @@ def test_scene_cloud_bad_inputs(tmp_path: Path) -> None:
     junk.write_text("not a cloud")
     with pytest.raises(PerceptionError, match="holds no points"):
         load_ply(str(junk))
+
+
+def test_scene_cloud_without_extrinsics() -> None:
+    from dataclasses import replace
+
+    frames, T_base_cam = _wall_frames(1.0)
+    cfg = CloudCfg(
+        workspace_min=(-2, -2, -2), workspace_max=(2, 2, 2), voxel=0.0, outlier_neighbors=0
+    )
+    unknown = replace(frames, T_color_depth=None)
+    # Same pixels (depth aligned to color): the identity relates the streams.
+    assert len(scene_cloud(unknown, T_base_cam, cfg)) == 64 * 48
+    assert frames.color is not None
+    other = replace(frames.color, intrinsics=_intrinsics(61.0, 32.0, 24.0))
+    with pytest.raises(PerceptionError, match=r"extrinsics are missing.*default_extrinsics=True"):
+        scene_cloud(replace(unknown, color=other), T_base_cam, cfg)
