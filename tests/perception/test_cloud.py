@@ -123,7 +123,7 @@ def test_scene_cloud_bad_inputs(tmp_path: Path) -> None:
         load_ply(str(tmp_path / "none.ply"))
     junk = tmp_path / "junk.ply"
     junk.write_text("not a cloud")
-    with pytest.raises(PerceptionError, match="holds no points"):
+    with pytest.raises(PerceptionError, match="not a PLY file"):
         load_ply(str(junk))
 
 
