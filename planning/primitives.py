@@ -255,7 +255,7 @@ def _primitive(item: Any, where: str) -> Primitive:
             f"{where}: an obstacle must be a mapping with a type ({kinds}), got {show(item)}"
         )
     kind = item.get("type")
-    if kind not in OBSTACLE_KEYS:
+    if not isinstance(kind, str) or kind not in OBSTACLE_KEYS:
         if "type" not in item:
             raise PlanningError(f"{where}: missing 'type'; valid: {kinds}")
         raise PlanningError(f"{where}.type: unknown type {show(kind)}; valid: {kinds}")

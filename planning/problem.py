@@ -52,6 +52,7 @@ import numpy.typing as npt
 import yaml
 
 from core.errors import PlanningError
+from core.text_io import read_text
 from planning.primitives import PrimitiveWorld, numbers, show
 
 Array = npt.NDArray[np.float64]
@@ -253,29 +254,9 @@ def load_problems(path: str | Path, dof: int | None = None) -> list[Problem]:
 
 def _read(source: Path) -> Any:
     """The parsed document of a problem file, within the module docstring's limits."""
-    try:
-        if not source.is_file():
-            raise PlanningError(f"problem file {source} does not exist (or is not a file)")
-        with source.open("rb") as f:
-            raw = f.read(MAX_FILE_BYTES + 1)
-    except OSError as err:
-        raise PlanningError(f"problem file {source} cannot be read: {err.strerror}") from err
-    if len(raw) > MAX_FILE_BYTES:
-        raise PlanningError(
-            f"problem file {source} is larger than the limit of {MAX_FILE_BYTES // 2**20} MiB; "
-            "split it"
-        )
-    if b"\0" in raw:
-        raise PlanningError(
-            f"problem file {source} is binary (it holds NUL bytes), not YAML or JSON text"
-        )
-    try:
-        text = raw.decode("utf-8").removeprefix("\ufeff")
-    except UnicodeDecodeError as err:
-        raise PlanningError(
-            f"problem file {source} is not UTF-8 text (byte 0x{raw[err.start]:02x} at offset "
-            f"{err.start}); problem files are YAML or JSON"
-        ) from err
+    # size limit, binary and non-UTF-8 files: as every text file users give
+    text = read_text(source, "problem file", PlanningError, max_bytes=MAX_FILE_BYTES)
+    text = text.removeprefix("\ufeff")
     if source.suffix.lower() == ".json":
         try:
             return json.loads(text)

@@ -5,12 +5,16 @@ field; rpy poses; several goals (loading, round trip, path check, harness); safe
 from __future__ import annotations
 
 import json
+import tempfile
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from core.errors import PlanningError
@@ -20,7 +24,7 @@ from planning import problem as problem_module
 from planning.path_check import check_path
 from planning.planner import PlanResult, PlanStatus
 from planning.primitives import Box, PrimitiveWorld, Sphere
-from planning.problem import Problem, load_problems, save_problems
+from planning.problem import Problem, load_problems, problem_from_dict, save_problems
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 from tests.conftest import run_cli
@@ -176,6 +180,85 @@ def test_bad_problem_files_name_the_file_the_problem_and_the_field(
     assert "\n" not in message
     for fragment in [str(path), *fragments]:
         assert fragment in message, f"{fragment!r} not in {message!r}"
+
+
+def _base() -> dict[str, Any]:
+    pose = {"xyz": [0.3, 0.0, 0.1], "quat_xyzw": [0.0, 0.0, 0.0, 1.0]}
+    return {
+        "name": "p", "seed": 1, "start": list(Q0), "goal": [list(G1), list(G2)],
+        "obstacles": [
+            {"type": "box", "size": [0.1, 0.2, 0.3], "pose": pose},
+            {"type": "sphere", "radius": 0.1, "center": [0.0, 0.5, 0.5]},
+            {"type": "cylinder", "radius": 0.05, "height": 0.3, "pose": {"xyz": [0, 0, 0], "rpy": [0.1, 0.2, 0.3]}},
+        ],
+    }  # fmt: skip
+
+
+SPOTS: list[tuple[str | int, ...]] = [
+    ("name",), ("seed",), ("family",), ("difficulty",), ("start",), ("start", 2), ("goal",),
+    ("goal", 1), ("goal", 1, 5), ("obstacles",), ("obstacles", 0), ("obstacles", 0, "type"),
+    ("obstacles", 0, "size"), ("obstacles", 0, "size", 1), ("obstacles", 0, "pose"),
+    ("obstacles", 0, "pose", "xyz"), ("obstacles", 0, "pose", "quat_xyzw"),
+    ("obstacles", 0, "pose", "quat_xyzw", 3), ("obstacles", 0, "position"),
+    ("obstacles", 1, "radius"), ("obstacles", 1, "center"), ("obstacles", 1, "center", 0),
+    ("obstacles", 2, "height"), ("obstacles", 2, "pose", "rpy"), ("obstacles", 2, "pose", "rpy", 2),
+]  # fmt: skip
+VALUES = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=4),
+    lambda inner: st.lists(inner, max_size=7) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
+    max_leaves=12,
+)  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None)
+@given(spot=st.sampled_from(SPOTS), value=VALUES)
+def test_any_value_anywhere_loads_or_is_one_planning_error(
+    spot: tuple[str | int, ...], value: Any
+) -> None:
+    item = _base()
+    parent: Any = item
+    for key in spot[:-1]:
+        parent = parent[key]
+    parent[spot[-1]] = value
+    try:
+        problem = problem_from_dict(item, "p.json: problem 0", dof=6)
+    except PlanningError as err:
+        assert str(err).startswith("p.json: problem 0") and "\n" not in str(err)
+        return
+    # what loads is what the file says, finite and of the robot's dof
+    assert problem.start.shape == (6,) and problem.goals.shape[1] == 6
+    assert np.isfinite(problem.start).all() and np.isfinite(problem.goals).all()
+    assert len(problem.world) == len(item["obstacles"])
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    goals=st.integers(1, 4),
+    rpy=st.lists(st.floats(-np.pi, np.pi), min_size=3, max_size=3),
+    quat=st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(
+        lambda q: np.linalg.norm(q) > 0.1
+    ),
+)
+def test_problems_round_trip_through_both_formats(
+    goals: int, rpy: list[float], quat: list[float]
+) -> None:
+    rng = np.random.default_rng(goals)
+    unit = (np.array(quat) / np.linalg.norm(quat)).tolist()
+    item = _base()
+    item["goal"] = rng.uniform(-3, 3, (goals, 6)).tolist()
+    item["obstacles"][0]["pose"]["quat_xyzw"] = unit
+    item["obstacles"][2]["pose"]["rpy"] = rpy
+    problem = problem_from_dict(item, "p", dof=6)
+    pts = rng.uniform(-1, 1, (100, 3))
+    with tempfile.TemporaryDirectory() as folder:
+        for name in ("p.yaml", "p.json"):
+            save_problems(Path(folder) / name, [problem])
+            (back,) = load_problems(Path(folder) / name, dof=6)
+            np.testing.assert_array_equal(back.goals, problem.goals)
+            np.testing.assert_array_equal(back.start, problem.start)
+            np.testing.assert_allclose(
+                back.world.distance(pts), problem.world.distance(pts), atol=1e-9
+            )
 
 
 def test_an_obstacle_with_flat_position_keys_is_refused_not_put_at_the_origin(
@@ -348,11 +431,11 @@ def test_the_harness_gives_many_goal_planners_all_and_others_the_nearest(
     ("content", "fragment"),
     [
         pytest.param(
-            b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", "is binary (it holds NUL bytes)", id="binary"
+            b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", "is a binary file, not text", id="binary"
         ),
         pytest.param(
             "problems: [{name: caf\u00e9}]".encode("latin-1"),
-            "is not UTF-8 text (byte 0xe9 at offset 21)",
+            "is not UTF-8 text (byte 21: b'\\xe9')",
             id="latin-1",
         ),
     ],
@@ -409,7 +492,9 @@ def test_alias_bombs_and_deep_nesting_are_refused(
 def test_the_size_limit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(problem_module, "MAX_FILE_BYTES", 2**20)
     path = _write(tmp_path, "problems:\n" + GOOD * 20_000, "big.yaml")
-    with pytest.raises(PlanningError, match=r"big\.yaml is larger than the limit of 1 MiB"):
+    with pytest.raises(
+        PlanningError, match=r"big\.yaml is [0-9,]+ bytes; the largest accepted is 1,048,576"
+    ):
         load_problems(path, dof=6)
 
 
