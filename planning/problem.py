@@ -23,7 +23,9 @@ Problem files (YAML or JSON) let users bring their own benchmark::
 
 Several goals are spelled ``goal:`` with a list of joint vectors (as MotionBenchMaker's goal
 sets); there is no ``goals:`` key. :attr:`Problem.goals` holds them (K, dof) and
-:attr:`Problem.goal` the first.
+:attr:`Problem.goal` the first. The harness hands every valid goal to the planners that take
+several (``plan_between``: rrtc and the OMPL planners) and the valid goal nearest the start
+to the others (the neural planners); its path check accepts a path ending at any goal.
 
 Every key is checked: unknown keys are refused (listing the valid ones) at the top level, in
 a problem, an obstacle and a pose; a pose is ``{xyz, quat_xyzw}`` or ``{xyz, rpy}`` (rad,
@@ -35,8 +37,8 @@ not checked here: the harness counts such problems apart.
 Files are read as UTF-8, at most ``MAX_FILE_BYTES``; YAML through the safe loaders only
 (libyaml's when installed), nested at most ``MAX_DEPTH`` levels, with at most
 ``MAX_ALIASES`` aliases that together add at most ``MAX_ALIAS_NODES`` nodes (an alias bomb
-is refused before anything is built). Anything else is one :class:`PlanningError` line naming the file,
-the problem (index and name) and the field.
+is refused before anything is built). Anything else is one :class:`PlanningError` line
+naming the file, the problem (index and name) and the field.
 """
 
 from __future__ import annotations
