@@ -20,8 +20,10 @@ from core.errors import GaideError
 
 #: Largest text file read (bytes): settings and calibrations are a few kB.
 MAX_TEXT_BYTES = 16 * 1024 * 1024
-#: Largest number of values a YAML document may expand to, aliases counted at each use.
-MAX_YAML_VALUES = 2_000_000
+#: YAML nesting levels (a problem file needs 7), aliases, and nodes the aliases add.
+MAX_YAML_DEPTH = 32
+MAX_YAML_ALIASES = 10_000
+MAX_YAML_ALIAS_NODES = 1_000_000
 
 _Loader: type[Any] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -60,25 +62,71 @@ def read_text(
 
 
 def parse_yaml(text: str, where: str, error: type[GaideError]) -> Any:
-    """The YAML document in ``text`` (``where`` names it in errors), with the alias limit."""
-    loader = _Loader(text)
+    """The YAML document in ``text`` (``where`` names it in errors: "config file x.yaml"),
+    after :func:`check_yaml_structure`; every error is one line."""
     try:
-        node = loader.get_single_node()
-        if node is None:
-            return None
-        values = _expanded_size(node, {}, set())
-        if values > MAX_YAML_VALUES:
-            raise error(
-                f"{where}: its aliases expand to more than {MAX_YAML_VALUES:,} values; refused "
-                "(a YAML alias bomb?)"
-            )
-        return loader.construct_document(node)
-    except yaml.YAMLError as err:
-        raise error(f"{where} is not valid YAML: {err}") from err
-    except RecursionError as err:
-        raise error(f"{where}: nested too deeply to read") from err
-    finally:
-        loader.dispose()
+        check_yaml_structure(text, where, error)
+        return yaml.load(text, Loader=_Loader)
+    except yaml.MarkedYAMLError as err:
+        mark = err.problem_mark or err.context_mark
+        at = "" if mark is None else f"line {mark.line + 1}, column {mark.column + 1}: "
+        what = " ".join(s for s in (err.context, err.problem) if s)
+        raise error(f"{where} is not valid YAML: {at}{one_line(what)}") from err
+    except (yaml.YAMLError, ValueError, OverflowError) as err:  # e.g. a date out of range
+        raise error(f"{where} is not valid YAML: {one_line(err)}") from err
+
+
+def check_yaml_structure(text: str, where: str, error: type[GaideError]) -> None:
+    """``error`` for YAML nested deeper than :data:`MAX_YAML_DEPTH` (libyaml's composer
+    recurses on the C stack: 100,000 nested ``[`` crash the interpreter), or whose aliases
+    exceed :data:`MAX_YAML_ALIASES` or add more than :data:`MAX_YAML_ALIAS_NODES` nodes once
+    expanded (an alias bomb), judged from the parser's events before anything is built."""
+    expanded: dict[str, int] = {}  # anchor -> nodes of its node, aliases expanded
+    open_: list[list[Any]] = []  # collections being read: [anchor, nodes so far]
+    aliases = added = 0
+    for event in yaml.parse(text, Loader=_Loader):  # a safe loader
+        if isinstance(event, yaml.ScalarEvent):
+            anchor, n = event.anchor, 1
+        elif isinstance(event, yaml.CollectionStartEvent):
+            open_.append([event.anchor, 1])
+            if len(open_) > MAX_YAML_DEPTH:
+                raise error(f"{where} nests deeper than {MAX_YAML_DEPTH} levels ({_at(event)})")
+            continue
+        elif isinstance(event, yaml.CollectionEndEvent):
+            anchor, n = open_.pop()
+        elif isinstance(event, yaml.AliasEvent):
+            aliases += 1
+            if aliases > MAX_YAML_ALIASES:
+                raise error(f"{where} has more than {MAX_YAML_ALIASES} YAML aliases ({_at(event)})")
+            got = expanded.get(event.anchor or "")
+            if got is None:
+                raise error(
+                    f"{where}: alias *{event.anchor} ({_at(event)}) names no anchor before it, "
+                    "or one that contains it (a cycle)"
+                )
+            anchor, n = None, got
+            added += got
+            if added > MAX_YAML_ALIAS_NODES:
+                raise error(
+                    f"{where}: its YAML aliases expand to more than {MAX_YAML_ALIAS_NODES:,} "
+                    f"nodes ({_at(event)}; an alias bomb?); write the values out"
+                )
+        else:  # stream and document events
+            continue
+        if anchor is not None:
+            expanded[anchor] = n
+        if open_:
+            open_[-1][1] += n
+
+
+def one_line(err: object) -> str:
+    """``err``'s text on one line (library messages span several)."""
+    return " ".join(str(err).split())
+
+
+def _at(event: yaml.Event) -> str:
+    mark = event.start_mark
+    return "line ?" if mark is None else f"line {mark.line + 1}"
 
 
 def load_yaml(
@@ -103,29 +151,9 @@ def load_json(
     text = read_text(path, what, error, max_bytes=max_bytes)
     try:
         return json.loads(text)
-    except ValueError as err:
-        raise error(f"{what} {path} is not valid JSON: {err}") from err
-
-
-def _expanded_size(node: yaml.Node, sizes: dict[int, int], active: set[int]) -> int:
-    """How many values ``node`` becomes once every alias is expanded (each use counted)."""
-    key = id(node)
-    if key in sizes:
-        return sizes[key]
-    if key in active:
-        raise yaml.YAMLError("an alias refers to a node that contains it (a cycle)")
-    active.add(key)
-    total = 1
-    if isinstance(node, yaml.MappingNode):
-        for k, v in node.value:
-            total += _expanded_size(k, sizes, active) + _expanded_size(v, sizes, active)
-            if total > MAX_YAML_VALUES:
-                break
-    elif isinstance(node, yaml.SequenceNode):
-        for v in node.value:
-            total += _expanded_size(v, sizes, active)
-            if total > MAX_YAML_VALUES:
-                break
-    active.discard(key)
-    sizes[key] = total
-    return total
+    except json.JSONDecodeError as err:
+        raise error(
+            f"{what} {path} is not valid JSON: line {err.lineno}, column {err.colno}: {err.msg}"
+        ) from err
+    except (ValueError, RecursionError) as err:  # too many digits, nested too deep
+        raise error(f"{what} {path} is not valid JSON: {one_line(err)}") from err

@@ -62,7 +62,8 @@ def T_color_depth(
         raise BagError(
             f"{path}: no depth-to-color extrinsics: {missing}. Valid: "
             f"{VALID_EXTRINSICS[layout.layout]}. To assume {DEFAULT_EXTRINSICS} instead, opt "
-            "in with read_bag(..., default_extrinsics=True)"
+            "in with --default-extrinsics (gaide perceive), perception.default_extrinsics: "
+            "true (gaide run) or read_bag(..., default_extrinsics=True)"
         )
     # Only one stream is read: nothing to relate, so no warning.
     logger.info("%s: %s; T_color_depth is unknown", path, missing)

@@ -115,8 +115,9 @@ def scene_cloud(
         ):
             raise PerceptionError(
                 f"{frames.source}: depth-to-color extrinsics are missing, needed to place depth "
-                "points in the calibrated color frame; read the bag with "
-                "read_bag(..., default_extrinsics=True) to assume the SDK's default (identity)"
+                "points in the calibrated color frame; to assume the identity, opt in with "
+                "--default-extrinsics (gaide perceive), perception.default_extrinsics: true "
+                "(gaide run) or read_bag(..., default_extrinsics=True)"
             )
         T_color_depth = np.eye(4)
     depth_m = fuse_depth(frames.depth.images[: cfg.max_frames], frames.depth_units)

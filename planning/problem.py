@@ -35,8 +35,7 @@ the robot (see :mod:`planning.primitives` for obstacles). Joint limits and colli
 not checked here: the harness counts such problems apart.
 
 Files are read as UTF-8, at most ``MAX_FILE_BYTES``; YAML through the safe loaders only
-(libyaml's when installed), nested at most ``MAX_DEPTH`` levels, with at most
-``MAX_ALIASES`` aliases that together add at most ``MAX_ALIAS_NODES`` nodes (an alias bomb
+(libyaml's when installed), with :mod:`core.text_io`'s limits on nesting and aliases (an alias bomb
 is refused before anything is built). Anything else is one :class:`PlanningError` line
 naming the file, the problem (index and name) and the field.
 """
@@ -54,7 +53,7 @@ import numpy.typing as npt
 import yaml
 
 from core.errors import PlanningError
-from core.text_io import read_text
+from core.text_io import one_line, parse_yaml, read_text
 from planning.primitives import PrimitiveWorld, numbers, show
 
 Array = npt.NDArray[np.float64]
@@ -64,12 +63,8 @@ PROBLEM_KEYS = ("name", "family", "seed", "difficulty", "start", "goal", "obstac
 _REQUIRED = ("start", "goal", "obstacles")
 
 MAX_FILE_BYTES = 64 * 2**20
-MAX_DEPTH = 32  # YAML nesting levels; a problem file needs 7 (problems, problem, ...)
-MAX_ALIASES = 10_000
-MAX_ALIAS_NODES = 1_000_000  # nodes the aliases add to the file's own, expanded
 
 # libyaml's parser and composer (5x faster than PyYAML's own here), the safe constructor.
-_YAML_LOADER: type[yaml.SafeLoader] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 @dataclass(frozen=True, init=False)
@@ -269,79 +264,9 @@ def _read(source: Path) -> Any:
             ) from err
         except (ValueError, RecursionError) as err:  # too many digits, too deep
             raise PlanningError(
-                f"problem file {source} does not parse as JSON: {_one_line(err)}"
+                f"problem file {source} does not parse as JSON: {one_line(err)}"
             ) from err
-    try:
-        _check_yaml_structure(text, source)
-        return yaml.load(text, Loader=_YAML_LOADER)
-    except yaml.MarkedYAMLError as err:
-        mark = err.problem_mark or err.context_mark
-        at = "" if mark is None else f"line {mark.line + 1}, column {mark.column + 1}: "
-        what = " ".join(s for s in (err.context, err.problem) if s)
-        raise PlanningError(
-            f"problem file {source} does not parse as YAML: {at}{_one_line(what)}"
-        ) from err
-    except (yaml.YAMLError, ValueError, OverflowError) as err:  # e.g. a date out of range
-        raise PlanningError(
-            f"problem file {source} does not parse as YAML: {_one_line(err)}"
-        ) from err
-
-
-def _check_yaml_structure(text: str, source: Path) -> None:
-    """PlanningError for YAML nested deeper than ``MAX_DEPTH`` (libyaml's composer recurses
-    on the C stack) or whose aliases exceed ``MAX_ALIASES`` or add more than
-    ``MAX_ALIAS_NODES`` nodes once expanded (an alias bomb), from the parser's events,
-    before anything is built."""
-    expanded: dict[str, int] = {}  # anchor -> nodes of its node, aliases expanded
-    open_: list[list[Any]] = []  # collections being read: [anchor, nodes so far]
-    aliases = added = 0
-    for event in yaml.parse(text, Loader=_YAML_LOADER):  # a safe loader
-        if isinstance(event, yaml.ScalarEvent):
-            anchor, n = event.anchor, 1
-        elif isinstance(event, yaml.CollectionStartEvent):
-            open_.append([event.anchor, 1])
-            if len(open_) > MAX_DEPTH:
-                raise PlanningError(
-                    f"problem file {source} nests deeper than {MAX_DEPTH} levels ({_at(event)})"
-                )
-            continue
-        elif isinstance(event, yaml.CollectionEndEvent):
-            anchor, n = open_.pop()
-        elif isinstance(event, yaml.AliasEvent):
-            aliases += 1
-            if aliases > MAX_ALIASES:
-                raise PlanningError(
-                    f"problem file {source} has more than {MAX_ALIASES} YAML aliases ({_at(event)})"
-                )
-            got = expanded.get(event.anchor or "")
-            if got is None:
-                raise PlanningError(
-                    f"problem file {source}: alias *{event.anchor} ({_at(event)}) names no "
-                    "anchor before it, or one that contains it"
-                )
-            anchor, n = None, got
-            added += got
-            if added > MAX_ALIAS_NODES:
-                raise PlanningError(
-                    f"problem file {source}: its YAML aliases expand to more than "
-                    f"{MAX_ALIAS_NODES} nodes ({_at(event)}; an alias bomb?); write the "
-                    "values out"
-                )
-        else:  # stream and document events
-            continue
-        if anchor is not None:
-            expanded[anchor] = n
-        if open_:
-            open_[-1][1] += n
-
-
-def _at(event: yaml.Event) -> str:
-    mark = event.start_mark
-    return "line ?" if mark is None else f"line {mark.line + 1}"
-
-
-def _one_line(err: object) -> str:
-    return " ".join(str(err).split())
+    return parse_yaml(text, f"problem file {source}", PlanningError)
 
 
 def save_problems(path: str | Path, problems: list[Problem]) -> None:

@@ -53,6 +53,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "--joints", help="robot joint values (rad, comma separated) when the bag has none"
     )
     per.add_argument("--no-self-filter", action="store_true", help="keep the robot's own points")
+    per.add_argument(
+        "--default-extrinsics",
+        action="store_true",
+        help="a bag without depth-to-color extrinsics: assume the identity (~15 mm off on a "
+        "D400) instead of refusing it",
+    )
     per.add_argument("--voxel", type=float, default=0.01, help="downsampling voxel (m)")
     per.add_argument(
         "--workspace", help="crop box in the base frame: xmin,ymin,zmin,xmax,ymax,zmax (m)"
@@ -149,6 +155,7 @@ def cmd_perceive(args: argparse.Namespace) -> int:
         CloudCfg(**cfg_kwargs),  # type: ignore[arg-type]
         joints=joints,
         self_filter=not args.no_self_filter,
+        default_extrinsics=args.default_extrinsics,
     )
     out = Path(args.output)
     png = Path(args.png) if args.png else out.with_suffix(".png")

@@ -56,14 +56,18 @@ def perceive_bag(
     *,
     joints: Array | None = None,
     self_filter: bool = True,
+    default_extrinsics: bool = False,
 ) -> tuple[SceneCloud, Frames, Array | None]:
     """The scene cloud of ``bag``; returns (cloud, frames, joint vector used for the
-    self-filter or None). ``calibration``: a calibration YAML, a result, or a 4x4 T_base_cam."""
+    self-filter or None). ``calibration``: a calibration YAML, a result, or a 4x4 T_base_cam.
+    ``default_extrinsics``: a bag without the depth-to-color extrinsics is read with the
+    identity (see :func:`perception.bag_reader.read_bag`) instead of refused."""
     cfg = cfg or CloudCfg()
     frames = read_bag(
         bag,
         streams=("depth",) if isinstance(calibration, np.ndarray) else ("depth", "color"),
         max_frames=cfg.max_frames,
+        default_extrinsics=default_extrinsics,
     )
     if isinstance(calibration, np.ndarray):
         T_base_cam = calibration
@@ -75,7 +79,8 @@ def perceive_bag(
         )
         check_intrinsics(calib, frames)
         T_base_cam = calib.T_base_cam
-    q = joints if joints is not None else recorded_configuration(frames, robot)
+    # the bag's joint states matter only to the self-filter
+    q = joints if joints is not None or not self_filter else recorded_configuration(frames, robot)
     robot_spheres = None
     if self_filter:
         if q is None:

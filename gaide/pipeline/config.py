@@ -67,6 +67,7 @@ class PerceptionCfg:
     max_frames: int
     self_filter: bool
     joints: tuple[float, ...] | None  # rad, for the self-filter when the bag has none
+    default_extrinsics: bool  # a bag without depth-to-color extrinsics: assume the identity
 
     def __post_init__(self) -> None:
         k = self.SECTION
@@ -96,6 +97,7 @@ class PerceptionCfg:
         )
         checks.integer(self.max_frames, f"{k}.max_frames", lo=1)
         checks.flag(self.self_filter, f"{k}.self_filter")
+        checks.flag(self.default_extrinsics, f"{k}.default_extrinsics")
         _set(self, "joints", checks.vector(self.joints, f"{k}.joints", unit="rad"))
 
 

@@ -231,6 +231,7 @@ def perception_stage(
         cloud_cfg,
         joints=joints,
         self_filter=p.self_filter,
+        default_extrinsics=p.default_extrinsics,
     )
     picture = figures.cloud_png(
         cloud.points,

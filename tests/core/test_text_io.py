@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from core.errors import ConfigError
-from core.text_io import MAX_YAML_VALUES, load_json, load_yaml, parse_yaml, read_text
+from core.text_io import MAX_YAML_ALIAS_NODES, load_json, load_yaml, parse_yaml, read_text
 
 BILLION_LAUGHS = "\n".join(
     ["a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]"]
@@ -27,12 +27,13 @@ def test_yaml_reads_as_the_safe_loader_does(tmp_path: Path) -> None:
     [
         (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", "is a binary file"),
         (b"a: caf\xe9\n", "is not UTF-8 text (byte 6"),
-        (BILLION_LAUGHS.encode(), f"more than {MAX_YAML_VALUES:,} values"),
+        (BILLION_LAUGHS.encode(), f"more than {MAX_YAML_ALIAS_NODES:,} nodes"),
         (b"a: &a [*a]\n", "cycle"),
+        (b"a: " + b"[" * 100_000, "nests deeper than 32 levels"),
         (b"a: [1, 2\n", "is not valid YAML"),
         (b"!!python/object/apply:os.system ['echo hi']\n", "is not valid YAML"),
     ],
-    ids=["binary", "latin-1", "alias-bomb", "alias-cycle", "syntax", "python-tag"],
+    ids=["binary", "latin-1", "alias-bomb", "alias-cycle", "deep", "syntax", "python-tag"],
 )
 def test_bad_files_are_one_error_naming_the_file(
     tmp_path: Path, content: bytes, message: str
@@ -42,6 +43,7 @@ def test_bad_files_are_one_error_naming_the_file(
     with pytest.raises(ConfigError) as err:
         load_yaml(f, "config file", ConfigError)
     assert message in str(err.value) and str(f) in str(err.value)
+    assert "\n" not in str(err.value)
 
 
 def test_size_limit_missing_file_and_folder(tmp_path: Path) -> None:

@@ -295,3 +295,29 @@ def test_cli_perceive_on_a_damaged_bag_exits_3_and_writes_nothing(
     assert "has no messages" in lines[0] and "the bag is damaged" in lines[0]
     assert "Traceback" not in proc.stderr
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_cli_perceive_opts_in_to_the_default_extrinsics(
+    tmp_path: Path, rng: np.random.Generator
+) -> None:
+    # With a calibration file the color stream is read too, so a bag without extrinsics is
+    # refused, unless the user opts in.
+    from calibration.result import CalibrationResult, FrameResidual, Mode
+
+    frames = make_frames(rng, T_color_depth=None, layout=BagLayout.SDK)
+    path = write_bag(tmp_path / "noext.bag", frames, layout=BagLayout.SDK)
+    intr = frames.color.intrinsics  # type: ignore[union-attr]
+    T = np.diag([1.0, -1.0, -1.0, 1.0])  # looking straight down from 2 m
+    T[2, 3] = 2.0
+    calib = tmp_path / "calib.yaml"
+    CalibrationResult(
+        mode=Mode.FIXED, T_base_cam=T, K=intr.K, D=np.zeros(5), width=intr.width,
+        height=intr.height, reprojection_rms_px=0.1,
+        frames=(FrameResidual(0, None, 0.1, True),),
+    ).save_yaml(calib)  # fmt: skip
+    args = ("perceive", str(path), "--calib", str(calib), "--no-self-filter")
+    refused = run_cli(*args, "-o", str(tmp_path / "a.ply"))
+    assert refused.returncode == 3 and "--default-extrinsics" in refused.stderr, refused.stderr
+    assert len(refused.stderr.splitlines()) == 1 and not (tmp_path / "a.ply").exists()
+    ok = run_cli(*args, "--default-extrinsics", "-o", str(tmp_path / "b.ply"))
+    assert ok.returncode == 0 and (tmp_path / "b.ply").exists(), ok.stderr
