@@ -39,7 +39,7 @@ from execution.path_input import as_path, check_path_valid
 from execution.recheck import recheck
 from execution.ruckig_segments import SegmentChain, SegmentPlanner
 from execution.string_pull import pull_string
-from execution.timing_cfg import TimingCfg, TimingMode
+from execution.timing_cfg import MAX_SAMPLES, TimingCfg, TimingMode
 from execution.trajectory import SegmentInfo, TimedTrajectory, TimingStatus
 from planning.collision import CollisionChecker
 
@@ -99,6 +99,12 @@ class RuckigParameterizer:
         t0 = time.perf_counter()
         chain = SegmentChain(segments, limits.dof)
         n = int(np.ceil(chain.duration * cfg.rate_hz - 1e-9))
+        if n + 1 > MAX_SAMPLES:  # checked before the samples are allocated
+            raise TimingError(
+                f"the trajectory lasts {chain.duration:.0f} s: {n + 1:,} samples at "
+                f"{cfg.rate_hz:g} Hz, more than {MAX_SAMPLES:,}; raise the velocity, "
+                "acceleration or jerk scales (or limits), or lower the rate"
+            )
         t = np.arange(n + 1) / cfg.rate_hz
         q, qd, qdd, jerk = chain.evaluate(t)
         figures["ms_sample"] = _ms(t0)

@@ -128,11 +128,24 @@ def _read_csv(source: Path) -> TimedTrajectory:
     )
 
 
+#: rad/s, rad/s^2: a trajectory for a controller ends at rest
+_REST = 1e-6
+
+
 def _make(source: Path, **fields: Any) -> TimedTrajectory:
     try:
-        return TimedTrajectory(**fields)
+        traj = TimedTrajectory(**fields)
     except TimingError as err:
         raise ExecutionError(f"{source}: {err}") from err
+    moving = np.flatnonzero((np.abs(traj.qd[-1]) > _REST) | (np.abs(traj.qdd[-1]) > _REST))
+    if moving.size:
+        j = int(moving[0])
+        raise ExecutionError(
+            f"{source}: the trajectory ends moving ({traj.joint_names[j]} at "
+            f"{traj.qd[-1, j]:.3g} rad/s, {traj.qdd[-1, j]:.3g} rad/s^2 at t = {traj.t[-1]:.3f} s): "
+            "the file is cut short, or not a whole trajectory (one ends at rest)"
+        )
+    return traj
 
 
 def read_csv_table(source: Path) -> tuple[list[str], Array]:

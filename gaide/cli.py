@@ -46,7 +46,10 @@ def main(argv: list[str] | None = None) -> int:
     command = "gaide"
     args: Any = None
     try:
-        args = build_parser().parse_args(argv)
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit as done:  # --help (0) or a bad flag (2, already said)
+            return int(done.code or 0)
         command = f"gaide {args.command}"
         logging.basicConfig(
             level=logging.INFO if args.verbose else logging.WARNING,

@@ -8,6 +8,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from core.atomic import write_bytes_atomic
+from core.errors import ExecutionError
 from planning.checker import CHECKERS, DEFAULT_CHECKER
 from planning.robot_setup import robot_and_spheres
 
@@ -48,12 +50,10 @@ def _jsonable(value: Any) -> Any:
 
 
 def write_json(path: str | Path, payload: dict[str, Any]) -> None:
-    """Write JSON atomically (temporary file, then rename)."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(target.name + ".tmp")
-    tmp.write_text(json.dumps(_jsonable(payload), indent=2) + "\n")
-    tmp.replace(target)
+    """Write JSON atomically (temporary file, then rename); ExecutionError naming the file
+    when the system refuses (a full disk, no permission)."""
+    text = json.dumps(_jsonable(payload), indent=2) + "\n"
+    write_bytes_atomic(path, text.encode(), ExecutionError)
 
 
 def print_table(rows: list[tuple[str, str]], title: str = "") -> None:

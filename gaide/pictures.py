@@ -14,6 +14,8 @@ import numpy as np
 import numpy.typing as npt
 import trimesh
 
+from core.atomic import write_file_atomic
+from core.errors import ExecutionError
 from gaide.synthetic.camera import look_at
 from gaide.synthetic.raycast import RaycastScene
 from perception.depth import project
@@ -64,7 +66,9 @@ def render_meshes_png(
             cv2.line(
                 image, tuple(np.rint(uv[0]).astype(int)), tuple(np.rint(end).astype(int)), color, 3
             )
-    target = Path(path)
-    tmp = target.with_name(target.stem + ".tmp.png")
-    cv2.imwrite(str(tmp), image[:, :, ::-1])
-    tmp.replace(target)
+
+    def write(tmp: Path) -> None:
+        if not cv2.imwrite(str(tmp), image[:, :, ::-1]):
+            raise OSError(f"OpenCV could not write {tmp.name}")
+
+    write_file_atomic(path, write, ExecutionError)

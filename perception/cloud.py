@@ -17,6 +17,7 @@ import numpy.typing as npt
 import open3d as o3d
 
 from core.errors import PerceptionError
+from core.native_output import quiet_native_output
 from core.transforms import apply, is_rigid
 from perception.depth import deprojector_for, fuse_depth, project
 from perception.frames import Frames, Intrinsics
@@ -191,10 +192,19 @@ def save_ply(path: str, cloud: SceneCloud) -> None:
     if cloud.colors is not None:
         pcd.colors = o3d.utility.Vector3dVector(cloud.colors)
     try:
-        if not o3d.io.write_point_cloud(tmp, pcd):
-            raise PerceptionError(f"cannot write {target}")
-        check_ply_complete(tmp)
-        if len(o3d.io.read_point_cloud(tmp).points) != len(cloud.points):
+        with quiet_native_output():  # RPly prints a line per vertex it fails to write
+            written = o3d.io.write_point_cloud(tmp, pcd)
+        if not written:
+            raise PerceptionError(f"cannot write {target} (is the disk full?)")
+        try:
+            check_ply_complete(tmp)
+        except PerceptionError as err:
+            raise PerceptionError(
+                f"cannot write {target}: it reads back incomplete (is the disk full?)"
+            ) from err
+        with quiet_native_output():
+            back = len(o3d.io.read_point_cloud(tmp).points)
+        if back != len(cloud.points):
             raise PerceptionError(f"cannot write {target}: the file reads back short")
         tmp.replace(target)
     except OSError as err:

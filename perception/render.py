@@ -9,18 +9,17 @@ child can be stopped. If it fails or runs past the timeout, matplotlib draws the
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import multiprocessing as mp
 import os
-import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 
+from core.atomic import write_file_atomic
 from core.errors import PerceptionError
+from core.native_output import quiet_native_output
 
 Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
@@ -41,12 +40,31 @@ def render_png(
     [0, 1] and the base frame's axes of length ``axes`` (m), atomically. (Scenes with meshes
     are ray-cast instead: Filament draws triangles slowly on the software rasterizer.)
     Returns which renderer drew it: "open3d" or "matplotlib"."""
-    target = Path(path)
-    tmp = target.with_name(target.stem + ".tmp.png")
     pts = np.asarray(points, float)
     if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
         raise PerceptionError(f"nothing to draw: points must be (N, 3) with N > 0, got {pts.shape}")
     cols = _colors(pts, colors)
+    drawn: list[str] = []
+
+    def write(tmp: Path) -> None:
+        drawn.append(_render(tmp, pts, cols, eye, lookat, size, axes, timeout_s))
+
+    write_file_atomic(path, write, PerceptionError)
+    return drawn[0]
+
+
+def _render(
+    tmp: Path,
+    pts: Array,
+    cols: Array,
+    eye: tuple[float, float, float],
+    lookat: tuple[float, float, float],
+    size: tuple[int, int],
+    axes: float,
+    timeout_s: float,
+) -> str:
+    """Draw into ``tmp`` with Open3D (in a child process, given ``timeout_s``), else
+    matplotlib; returns which drew it."""
     job = (str(tmp), pts, cols, eye, lookat, size, axes)
     # fork: the child inherits the imports (a spawned child spends seconds importing Open3D);
     # the parent never starts a renderer, so no GPU or Filament state is forked.
@@ -60,11 +78,9 @@ def render_png(
             "Open3D's renderer did not finish in %.0f s; drawing with matplotlib", timeout_s
         )
     if proc.exitcode == 0 and tmp.is_file():
-        tmp.replace(target)
         return "open3d"
     tmp.unlink(missing_ok=True)
     _matplotlib_png(tmp, pts, cols, eye, lookat, size, axes)
-    tmp.replace(target)
     return "matplotlib"
 
 
@@ -87,7 +103,7 @@ def _open3d_worker(
 ) -> None:
     import open3d as o3d
 
-    with _quiet_native_output():
+    with quiet_native_output():
         renderer = o3d.visualization.rendering.OffscreenRenderer(*size)
     scene = renderer.scene
     scene.set_background([1.0, 1.0, 1.0, 1.0])
@@ -146,22 +162,3 @@ def _matplotlib_png(
     ax.set_zlabel("z (m)")
     fig.savefig(tmp)
     plt.close(fig)
-
-
-@contextlib.contextmanager
-def _quiet_native_output() -> Iterator[None]:
-    """Silence what Filament prints from C++ while the renderer starts (it writes straight to
-    the process's stdout/stderr, around Python's streams)."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = os.dup(1), os.dup(2)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        os.dup2(saved[0], 1)
-        os.dup2(saved[1], 2)
-        for fd in (*saved, devnull):
-            os.close(fd)

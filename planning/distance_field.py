@@ -22,6 +22,11 @@ from core.errors import PlanningError
 Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
+# Memory the lattice build holds per cell at its peak: the float32 field, the occupancy
+# mask, and scipy's float64 distance transform with its int32 feature indices.
+_BYTES_PER_CELL = 4 + 1 + 8 + 12
+MAX_LATTICE_BYTES = 4 * 2**30
+
 
 class CloudWorld:
     """Obstacles given as a point cloud (base/world frame)."""
@@ -47,6 +52,16 @@ class CloudWorld:
         self.shape = tuple(
             int(v) for v in np.ceil((pts.max(axis=0) + pad - self.origin) / voxel) + 1
         )
+        cells = int(np.prod(np.asarray(self.shape, dtype=np.float64)))
+        need = cells * _BYTES_PER_CELL
+        if need > MAX_LATTICE_BYTES:  # refused before anything that large is allocated
+            extent = pts.max(axis=0) - pts.min(axis=0)
+            raise PlanningError(
+                f"the distance lattice of a cloud spanning {np.round(extent, 2).tolist()} m at "
+                f"a {voxel * 100:g} cm voxel needs about {need / 2**30:.1f} GiB (the largest "
+                f"allowed is {MAX_LATTICE_BYTES / 2**30:g} GiB): raise planning.world_voxel or "
+                "crop the cloud (perception.workspace_min/max)"
+            )
         occupied = np.zeros(self.shape, bool)
         idx = np.rint((pts - self.origin) / voxel).astype(np.int64)
         occupied[idx[:, 0], idx[:, 1], idx[:, 2]] = True

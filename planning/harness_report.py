@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from core.atomic import write_file_atomic
+from core.errors import PlanningError
 from planning.harness import HarnessResult
 
 LABELS = {
@@ -96,11 +98,10 @@ def plot(result: HarnessResult, path: str | Path) -> None:
     axes[2].tick_params(axis="x", rotation=20)
     axes[0].legend(fontsize=8)
     fig.tight_layout()
-    target = Path(path)
-    tmp = target.with_name(target.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    tmp.replace(target)
+    try:
+        write_file_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110), PlanningError)
+    finally:
+        plt.close(fig)
 
 
 def category_table(result: HarnessResult) -> str:

@@ -6,6 +6,9 @@ from pathlib import Path
 
 import matplotlib
 
+from core.atomic import write_file_atomic
+from core.errors import PlanningError
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
@@ -52,8 +55,7 @@ def render_scene(
     ax.set_ylabel("y (m)")
     ax.set_zlabel("z (m)")
     ax.set_title(title)
-    target = Path(path)
-    tmp = target.with_name(target.stem + ".tmp.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    tmp.replace(target)
+    try:
+        write_file_atomic(path, lambda tmp: fig.savefig(tmp), PlanningError)
+    finally:
+        plt.close(fig)

@@ -7,6 +7,7 @@ from collections import Counter
 
 import numpy as np
 
+from core.errors import ConfigError
 from gaide.common import print_table, robot_and_spheres
 from planning.checker import make_checker
 from planning.plot import render_scene
@@ -84,6 +85,8 @@ def parse_configuration(text: str | None, robot) -> np.ndarray:  # type: ignore[
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    if not str(args.output).lower().endswith(".png"):
+        raise ConfigError(f"-o {args.output}: the picture is a PNG; name it *.png")
     robot, spheres = robot_and_spheres(args.robot)
     q = parse_configuration(args.q, robot)
     checker = make_checker(robot, spheres)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from core.errors import ConfigError
-from execution.timing_cfg import TimingCfg, TimingMode
+from execution.timing_cfg import MAX_RATE_HZ, TimingCfg, TimingMode
 from gaide.pipeline import checks
 from planning.checker import CHECKERS
 from planning.registry import CLASSICAL, COMPILED, HYBRID, NEURAL
@@ -170,7 +170,7 @@ class TimingSection:
         _set(
             self,
             "rate_hz",
-            checks.number(self.rate_hz, f"{k}.rate_hz", lo=1.0, hi=100_000.0, unit="Hz"),
+            checks.number(self.rate_hz, f"{k}.rate_hz", lo=1.0, hi=MAX_RATE_HZ, unit="Hz"),
         )
         for name in ("velocity_scale", "acceleration_scale", "jerk_scale"):
             scale = checks.number(getattr(self, name), f"{k}.{name}", lo=0.0, hi=1.0, lo_open=True)

@@ -43,7 +43,7 @@ from core.errors import (
     RobotModelError,
     TimingError,
 )
-from execution.staging import staged_outputs
+from execution.staging import staged_outputs, verify_file
 
 #: The exception (and so the exit code) of each stage.
 STAGE_ERRORS: dict[str, type[GaideError]] = {
@@ -187,8 +187,10 @@ class StageRunner:
             for tmp, content in zip(staged, files.values(), strict=True):
                 if isinstance(content, bytes):
                     tmp.write_bytes(content)
+                    verify_file(tmp, len(content), STAGE_ERRORS[record.name])
                 else:
                     content(tmp)
+                    verify_file(tmp, None, STAGE_ERRORS[record.name])
         record.outputs.extend(str(t) for t in targets)
         self.write_summary()  # the files are listed as soon as they exist
         return targets
@@ -230,6 +232,7 @@ def folder_lock(out: Path) -> Iterator[None]:
     import os
 
     lock = out / LOCK
+    created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -248,13 +251,23 @@ def folder_lock(out: Path) -> Iterator[None]:
             continue
         except OSError as err:
             raise ConfigError(f"cannot write into the output folder {out}: {err}") from err
-        with os.fdopen(fd, "w") as f:
-            f.write(str(os.getpid()))
+        try:
+            with os.fdopen(fd, "w") as f:
+                f.write(str(os.getpid()))
+        except OSError as err:
+            lock.unlink(missing_ok=True)
+            if created:
+                with contextlib.suppress(OSError):
+                    out.rmdir()
+            raise ExecutionError(f"cannot write {lock}: {err.strerror or err}") from err
         break
     try:
         yield
     finally:
         lock.unlink(missing_ok=True)
+        if created:  # a run that wrote nothing leaves no folder behind
+            with contextlib.suppress(OSError):
+                out.rmdir()
 
 
 def _lock_holder(lock: Path) -> int | None:

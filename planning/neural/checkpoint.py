@@ -123,6 +123,17 @@ def load_checkpoint(
         )
     except (KeyError, TypeError, ValueError) as err:
         raise ModelError(f"checkpoint {p} is incomplete ({err})") from err
+    bad = [
+        name
+        for name, tensor in ckpt.state.items()
+        if not isinstance(tensor, torch.Tensor)
+        or (tensor.is_floating_point() and not bool(torch.isfinite(tensor).all()))
+    ]
+    if bad:
+        raise ModelError(
+            f"checkpoint {p} has weights that are not finite numbers ({', '.join(bad[:3])}"
+            f"{', ...' if len(bad) > 3 else ''}): the training diverged or the file is damaged"
+        )
     if kind is not None and ckpt.kind != kind:
         raise ModelError(f"checkpoint {p} holds a {ckpt.kind} model, not {kind}")
     if robot is not None:

@@ -204,7 +204,7 @@ def test_settings_errors_exit_2_naming_the_key(
     rc, line = _run(capsys, str(bag), "--goal", GOAL, "--set", "planning.bugdet_s=3")
     assert rc == 2 and "planning.bugdet_s" in line and "budget_s" in line
     rc, line = _run(capsys, str(bag), "--goal", GOAL, "--set", "timing.rate_hz=0")
-    assert rc == 2 and "timing.rate_hz" in line and "[1, 100000]" in line
+    assert rc == 2 and "timing.rate_hz" in line and "[1, 2000]" in line
     rc, line = _run(capsys, str(bag), "-o", str(tmp_path / "o"), "--goal", "1,2")
     assert rc == 2 and "6 joints" in line
     rc, line = _run(capsys, str(bag), "-o", str(tmp_path / "o"), "--goal", "home", "--planner",

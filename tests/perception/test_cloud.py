@@ -141,3 +141,18 @@ def test_scene_cloud_without_extrinsics() -> None:
     other = replace(frames.color, intrinsics=_intrinsics(61.0, 32.0, 24.0))
     with pytest.raises(PerceptionError, match=r"extrinsics are missing.*default_extrinsics=True"):
         scene_cloud(replace(unknown, color=other), T_base_cam, cfg)
+
+
+def test_a_ply_cut_short_is_refused(tmp_path: Path) -> None:
+    from perception.cloud import SceneCloud, save_ply
+
+    pts = np.random.default_rng(0).random((400, 3))
+    whole = tmp_path / "whole.ply"
+    save_ply(str(whole), SceneCloud(pts, None))
+    np.testing.assert_allclose(load_ply(str(whole)), pts)
+    data = whole.read_bytes()
+    for keep in (0.5, 0.99):
+        cut = tmp_path / f"cut{keep}.ply"
+        cut.write_bytes(data[: int(len(data) * keep)])
+        with pytest.raises(PerceptionError, match="cut short: its header announces 400 points"):
+            load_ply(str(cut))

@@ -1,0 +1,384 @@
+"""Bad inputs and faults, as a new user meets them: every command answers with one line on
+stderr, the stage's exit code, and no half-written file (earlier files intact).
+
+Each case builds its inputs in ``tmp_path``. Most run the CLI in this process (no import
+cost); the full-disk and read-only cases run it in a private mount namespace
+(``unshare``) over a tiny tmpfs or a read-only bind mount, as a real disk would fail.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import torch
+
+from gaide.cli import main
+from tests.conftest import ROOT
+
+BAG = ROOT / "bags" / "sample_workcell.bag"
+TARGET = ROOT / "bags" / "sample_workcell.target_pose.yaml"
+PNG_BYTES = b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\x00\x00\x00\x01"
+BILLION_LAUGHS = "\n".join(
+    ["a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]"]
+    + [f"{chr(98 + k)}: &{chr(98 + k)} [{', '.join([f'*{chr(97 + k)}'] * 9)}]" for k in range(8)]
+)
+
+
+@dataclass(frozen=True)
+class Case:
+    argv: Callable[[Path, dict[str, Path]], list[str]]  # (tmp_path, made inputs) -> argv
+    code: int
+    says: str  # a fragment of the one line
+    absent: tuple[str, ...] = ()  # outputs (relative to tmp_path) that must not exist
+
+
+def _write(tmp: Path, name: str, content: str | bytes) -> Path:
+    p = tmp / name
+    p.write_bytes(content if isinstance(content, bytes) else content.encode())
+    return p
+
+
+CASES: dict[str, Case] = {
+    "plan-seed-negative": Case(
+        lambda t, _: ["plan", "--family", "box", "--seed=-1", "-o", str(t / "p.json")],
+        2,
+        "invalid seed '-1'",
+        ("p.json",),
+    ),
+    "target-pose-binary": Case(
+        lambda t, _: [
+            "calibrate",
+            str(BAG),
+            "--target-pose",
+            str(_write(t, "pose.yaml", PNG_BYTES)),
+            "-o",
+            str(t / "c.yaml"),
+        ],
+        4,
+        "is a binary file",
+        ("c.yaml",),
+    ),
+    "calib-not-utf8": Case(
+        lambda t, _: [
+            "perceive",
+            str(BAG),
+            "--calib",
+            str(_write(t, "c.yaml", b"T: caf\xe9")),
+            "-o",
+            str(t / "s.ply"),
+        ],
+        4,
+        "is not UTF-8 text",
+        ("s.ply", "s.png"),
+    ),
+    "robot-binary": Case(
+        lambda t, _: ["robot", "info", "--robot", str(_write(t, "r.yaml", PNG_BYTES))],
+        2,
+        "is a binary file",
+    ),
+    "config-alias-bomb": Case(
+        lambda t, _: [
+            "run",
+            str(BAG),
+            "--config",
+            str(_write(t, "bomb.yaml", BILLION_LAUGHS)),
+            "--goal",
+            "home",
+            "-o",
+            str(t / "out"),
+        ],
+        2,
+        "an alias bomb",
+        ("out/summary.json",),
+    ),
+    "problem-file-bad-seed": Case(
+        lambda t, _: [
+            "bench",
+            "planning",
+            "--problem-file",
+            str(
+                _write(
+                    t,
+                    "p.yaml",
+                    (
+                        "problems:\n  - {name: a, seed: 1.5, start: [0,0,0,0,0,0], goal: [1,0,0,0,0,0], "
+                        "obstacles: []}\n"
+                    ),
+                )
+            ),
+            "--planners",
+            "rrtc",
+            "--json",
+            str(t / "o.json"),
+        ],
+        7,
+        "problem 0 'a': seed",
+        ("o.json",),
+    ),
+    "problem-file-nan-radius": Case(
+        lambda t, _: [
+            "bench",
+            "planning",
+            "--problem-file",
+            str(
+                _write(
+                    t,
+                    "p.yaml",
+                    (
+                        "problems:\n  - {start: [0,0,0,0,0,0], goal: [1,0,0,0,0,0], obstacles: "
+                        "[{type: sphere, radius: .nan, center: [1, 1, 1]}]}\n"
+                    ),
+                )
+            ),
+            "--planners",
+            "rrtc",
+            "--json",
+            str(t / "o.json"),
+        ],
+        7,
+        "radius",
+        ("o.json",),
+    ),
+    "time-rate-too-high": Case(
+        lambda t, made: ["time", str(made["plan"]), "--rate", "100000", "-o", str(t / "x.csv")],
+        8,
+        "rate_hz must be in [1, 2000] Hz",
+        ("x.csv",),
+    ),
+    "trajectory-cut-at-a-line": Case(
+        lambda t, made: ["simulate", str(made["cut_csv"]), "--log", str(t / "log.csv")],
+        9,
+        "the trajectory ends moving",
+        ("log.csv",),
+    ),
+    "checkpoint-nan-weights": Case(
+        lambda t, made: [
+            "plan",
+            "--family",
+            "box",
+            "--planner",
+            "gaide",
+            "--checkpoint",
+            str(made["nan_ckpt"]),
+            "-o",
+            str(t / "p.json"),
+        ],
+        10,
+        "weights that are not finite numbers",
+        ("p.json",),
+    ),
+    "checkpoint-pickle-payload": Case(
+        lambda t, made: [
+            "plan",
+            "--family",
+            "box",
+            "--planner",
+            "gaide",
+            "--checkpoint",
+            str(made["evil_ckpt"]),
+            "-o",
+            str(t / "p.json"),
+        ],
+        10,
+        "is corrupt or not a torch file",
+        ("p.json", "pwned"),
+    ),
+    "world-voxel-too-small": Case(
+        lambda t, _: [
+            "run",
+            str(BAG),
+            "--goal",
+            "home",
+            "--planner",
+            "rrtc",
+            "-o",
+            str(t / "out"),
+            "--set",
+            "planning.world_voxel=0.002",
+            "--set",
+            "report.enabled=false",
+        ],
+        7,
+        "raise planning.world_voxel",
+        ("out/plan.json",),
+    ),
+    "setup-failure-over-an-earlier-run": Case(
+        lambda t, made: [
+            "run",
+            str(BAG),
+            "--goal",
+            "home",
+            "--planner",
+            "gaide-hybrid",
+            "--checkpoint",
+            str(t / "missing.pt"),
+            "-o",
+            str(made["earlier_run"]),
+        ],
+        10,
+        "missing.pt, which do not exist",
+        ("earlier/plan.json", "earlier/trajectory.csv"),
+    ),
+}
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Inputs several cases share: a planned path, a trajectory cut at a line boundary,
+    checkpoints with NaN weights and with a pickle payload."""
+    d = tmp_path_factory.mktemp("made")
+    calib = d / "calib.yaml"
+    assert main(["calibrate", str(BAG), "--target-pose", str(TARGET), "-o", str(calib)]) == 0
+    plan = d / "plan.json"
+    assert main(["plan", "--family", "box", "--planner", "rrtc", "-o", str(plan)]) == 0
+    traj = d / "traj.csv"
+    assert main(["time", str(plan), "--rate", "100", "-o", str(traj)]) == 0
+    lines = traj.read_text().splitlines()
+    cut = d / "cut.csv"
+    cut.write_text("\n".join(lines[: len(lines) // 2]) + "\n")  # whole rows, mid-motion
+    from planning.neural.checkpoint import shipped_checkpoint
+
+    raw = torch.load(shipped_checkpoint("gaide"), map_location="cpu", weights_only=True)
+    name = next(iter(raw["state"]))
+    raw["state"][name] = torch.full_like(raw["state"][name], float("nan"))
+    torch.save(raw, d / "nan.pt")
+
+    class Payload:
+        def __reduce__(self) -> tuple[object, ...]:
+            return (Path.touch, (d / "pwned",))
+
+    torch.save({"format": "x", "evil": Payload()}, d / "evil.pt")
+    earlier = d / "earlier"
+    earlier.mkdir()
+    for name in ("plan.json", "trajectory.csv"):
+        (earlier / name).write_text("an earlier run's file")
+    (earlier / "summary.json").write_text(
+        json.dumps(
+            {
+                "stages": {
+                    "planning": {"outputs": [str(earlier / "plan.json")]},
+                    "export": {"outputs": [str(earlier / "trajectory.csv")]},
+                }
+            }
+        )
+    )
+    return {
+        "calib": calib,
+        "plan": plan,
+        "cut_csv": cut,
+        "nan_ckpt": d / "nan.pt",
+        "evil_ckpt": d / "evil.pt",
+        "earlier_run": earlier,
+    }
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_bad_input_is_one_line_with_the_stage_code_and_nothing_half_written(
+    name: str, made: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    case = CASES[name]
+    before = set(tmp_path.rglob("*"))
+    code = main(case.argv(tmp_path, made))
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == case.code, err
+    assert len(err) == 1 and err[0].startswith("gaide "), err
+    assert case.says in err[0], err[0]
+    for rel in case.absent:
+        base = made["earlier_run"].parent if rel.startswith("earlier/") else tmp_path
+        assert not (base / rel).exists(), rel
+    assert not (made["evil_ckpt"].parent / "pwned").exists(), "the pickle payload ran"
+    leftovers = [p for p in set(tmp_path.rglob("*")) - before if p.name.startswith(".")]
+    assert leftovers == [], leftovers
+
+
+# -- faults of the system: a full disk, a read-only folder ---------------------------------
+
+
+def _in_namespace(script: str) -> subprocess.CompletedProcess[str]:
+    """Run ``script`` (sh) in a private user and mount namespace, where it may mount."""
+    unshare = shutil.which("unshare")
+    assert unshare is not None, "unshare (util-linux) is part of the system the tests need"
+    return subprocess.run(
+        [unshare, "--user", "--map-root-user", "--mount", "sh", "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+FULL_DISK = {
+    # command -> (argv after `gaide`, exit code: 9 or the stage's)
+    "plan": (["plan", "--family", "box", "--planner", "rrtc", "-o", "{d}/p.json"], 9),
+    "time": (["time", "{plan}", "-o", "{d}/p.json"], 9),
+    "perceive": (["perceive", str(BAG), "--calib", "{calib}", "-o", "{d}/p.json"], 5),
+    "robot-show": (["robot", "show", "-o", "{d}/p.png"], 7),
+    "demo": (["demo", "--quick", "-o", "{d}/out"], 9),
+}
+
+
+@pytest.mark.parametrize("command", list(FULL_DISK))
+def test_a_full_disk_is_one_line_and_leaves_the_earlier_file(
+    command: str, made: dict[str, Path], tmp_path: Path
+) -> None:
+    argv, code = FULL_DISK[command]
+    d = tmp_path / "disk"
+    d.mkdir()
+    name = "p.png" if "{d}/p.png" in argv else "p.json"  # the earlier file: the output's name
+    args = " ".join(a.format(d=d, plan=made["plan"], calib=made["calib"]) for a in argv)
+    # a 64 kB tmpfs, an earlier file on it, then filled to the last byte
+    proc = _in_namespace(
+        f"mount -t tmpfs -o size=64k tmpfs {d} && echo earlier > {d}/{name} && "
+        f"(cat /dev/zero > {d}/fill 2>/dev/null; true) && "
+        f'{sys.executable} -m gaide {args}; echo "rc=$?"; cat {d}/{name}; ls -A {d}'
+    )
+    lines = proc.stdout.splitlines()
+    rc = next(int(ln[3:]) for ln in lines if ln.startswith("rc="))
+    err = proc.stderr.strip().splitlines()
+    assert rc == code, proc.stderr
+    assert len(err) == 1 and ("No space left" in err[0] or "disk full" in err[0]), err
+    after = lines[lines.index(f"rc={rc}") + 1 :]
+    assert after[0] == "earlier", "the earlier file is intact"
+    assert sorted(after[1:]) == sorted(["fill", name]), "nothing half-written is left"
+
+
+def test_a_read_only_folder_is_one_line(tmp_path: Path) -> None:
+    d = tmp_path / "ro"
+    d.mkdir()
+    proc = _in_namespace(
+        f"mount --bind {d} {d} && mount -o remount,bind,ro {d} && "
+        f"{sys.executable} -m gaide plan --family box --planner rrtc -o {d}/p.json; "
+        'echo "rc=$?"'
+    )
+    err = proc.stderr.strip().splitlines()
+    assert "rc=9" in proc.stdout, proc.stderr
+    assert len(err) == 1 and "Read-only file system" in err[0], err
+    assert not any(d.iterdir())
+
+
+def test_ctrl_c_is_one_line_and_exit_130(tmp_path: Path) -> None:
+    import signal
+    import time
+
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gaide", "demo", "--quick", "-o", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(4.0)  # whatever it is doing by then (loading, calibrating), it must stop cleanly
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    lines = stderr.strip().splitlines()
+    assert lines and lines[-1].endswith("interrupted") and "Traceback" not in stderr, stderr
+    staged = [p for p in out.rglob(".*")] if out.exists() else []
+    assert [p.name for p in staged if p.name != ".gaide-run.lock"] == [], staged
+    assert not (out / ".gaide-run.lock").exists()
