@@ -7,55 +7,14 @@ come from the caller. Modules: ``targets`` (specs, frames, textures), ``detect``
 YAML), ``overlay`` (a picture to check by eye).
 """
 
-from calibration.detect import Detection, detect, scan
-from calibration.fixed import calibrate_fixed, load_target_pose
-from calibration.hand_eye import calibrate_hand_eye
-from calibration.overlay import draw_overlay, save_png
-from calibration.pnp import FramePose, PoseAverage, robust_average, solve_pose
-from calibration.result import (
-    CalibrationResult,
-    FrameResidual,
-    MethodResult,
-    Mode,
-    Spread,
-    load_calibration,
-)
-from calibration.targets import (
-    Charuco,
-    SingleTag,
-    TagGrid,
-    Target,
-    TargetTexture,
-    parse_target,
-    target_from_dict,
-    to_dict,
-)
-
 __all__ = [
-    "CalibrationResult",
-    "Charuco",
-    "Detection",
-    "FramePose",
-    "FrameResidual",
-    "MethodResult",
-    "Mode",
-    "PoseAverage",
-    "SingleTag",
-    "Spread",
-    "TagGrid",
-    "Target",
-    "TargetTexture",
-    "calibrate_fixed",
-    "calibrate_hand_eye",
     "detect",
-    "draw_overlay",
-    "load_calibration",
-    "load_target_pose",
-    "parse_target",
-    "robust_average",
-    "save_png",
-    "scan",
-    "solve_pose",
-    "target_from_dict",
-    "to_dict",
+    "fixed",
+    "frames",
+    "hand_eye",
+    "overlay",
+    "pnp",
+    "result",
+    "scale_check",
+    "targets",
 ]

@@ -25,9 +25,9 @@ import numpy as np
 import numpy.typing as npt
 
 from calibration.targets import Charuco, Target, aruco_dictionary
-from core.errors import CalibrationError
+from gaide_core.errors import CalibrationError
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 #: Fewest target points a detection needs to give a pose.

@@ -20,11 +20,11 @@ from calibration.pnp import project, robust_average
 from calibration.result import CalibrationResult, FrameResidual, Mode
 from calibration.scale_check import check_target_scale
 from calibration.targets import Target, target_from_dict, to_dict
-from core.errors import CalibrationError
-from core.text_io import load_yaml
-from core.transforms import from_xyz_quat, invert, is_rigid
+from gaide_core.errors import CalibrationError
+from gaide_core.text_io import load_yaml
+from gaide_core.transforms import from_xyz_quat, invert, is_rigid
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

@@ -12,9 +12,9 @@ import numpy.typing as npt
 from calibration.detect import Detection, scan
 from calibration.pnp import FramePose, solve_pose
 from calibration.targets import Target
-from core.errors import CalibrationError
+from gaide_core.errors import CalibrationError
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

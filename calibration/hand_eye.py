@@ -29,10 +29,10 @@ from calibration.pnp import dist_coeffs, pose_difference, robust_average
 from calibration.result import CalibrationResult, FrameResidual, MethodResult, Mode, Spread
 from calibration.scale_check import check_target_scale
 from calibration.targets import Target, to_dict
-from core.errors import CalibrationError
-from core.transforms import invert, is_rigid, make_transform
+from gaide_core.errors import CalibrationError
+from gaide_core.transforms import invert, is_rigid, make_transform
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 METHODS = {

@@ -12,10 +12,9 @@ import numpy.typing as npt
 from calibration.detect import Detection
 from calibration.pnp import dist_coeffs, project
 from calibration.targets import Charuco, SingleTag, Target
-from core.atomic import write_bytes_atomic
-from core.errors import CalibrationError
-
-Array = npt.NDArray[np.float64]
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import CalibrationError
+from gaide_core.types import Array
 
 GREEN, RED = (0, 200, 0), (255, 40, 40)  # RGB
 

@@ -12,15 +12,14 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
 from calibration.detect import Detection
 from calibration.targets import SingleTag, Target
-from core.errors import CalibrationError
-from core.transforms import apply, make_transform, rotation_angle
+from gaide_core.errors import CalibrationError
+from gaide_core.transforms import apply, make_transform, rotation_angle
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

@@ -30,12 +30,11 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from core.atomic import write_bytes_atomic
-from core.errors import CalibrationError
-from core.text_io import load_yaml
-from core.transforms import from_xyz_quat, is_rigid, to_xyz_quat, transform_error
-
-Array = npt.NDArray[np.float64]
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import CalibrationError
+from gaide_core.text_io import load_yaml
+from gaide_core.transforms import from_xyz_quat, is_rigid, to_xyz_quat, transform_error
+from gaide_core.types import Array
 
 
 class Mode(str, Enum):

@@ -13,14 +13,13 @@ import logging
 from collections.abc import Sequence
 
 import numpy as np
-import numpy.typing as npt
 
 from calibration.detect import Detection
 from calibration.targets import Target
-from core.errors import CalibrationError
-from core.transforms import apply
+from gaide_core.errors import CalibrationError
+from gaide_core.transforms import apply
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 #: Half-width (px) of the window whose valid depths are pooled (median) at each point.

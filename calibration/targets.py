@@ -32,9 +32,8 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import CalibrationError
-
-Array = npt.NDArray[np.float64]
+from gaide_core.errors import CalibrationError
+from gaide_core.types import Array
 
 #: Number of distinct ids in the tag36h11 family.
 TAG36H11_IDS = 587

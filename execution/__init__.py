@@ -16,3 +16,28 @@ Depends on ``core`` and ``planning`` only (robot model, collision checker, world
 - execution: ``sim_world`` and ``simulate`` (PyBullet), ``compare`` (plan vs log), ``plots``;
 - ``bench_timing``: ``gaide bench timing``.
 """
+
+__all__ = [
+    "bench_timing",
+    "blend",
+    "compare",
+    "corner_cut",
+    "export",
+    "joint_log",
+    "limits",
+    "parameterizer",
+    "path_input",
+    "plots",
+    "recheck",
+    "ros_bags",
+    "ruckig_segments",
+    "ruckig_timing",
+    "sim_world",
+    "simulate",
+    "staging",
+    "string_pull",
+    "timing_cfg",
+    "trajectory",
+    "trajectory_io",
+    "verify",
+]

@@ -35,11 +35,11 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import PlanningError
 from execution.ruckig_timing import RuckigParameterizer
 from execution.simulate import simulate
 from execution.timing_cfg import TimingCfg, TimingMode
 from execution.verify import limit_violations, path_deviation, swept_collisions
+from gaide_core.errors import PlanningError
 from planning.checker import make_checker
 from planning.families import FAMILIES, generate_problem, split_seed
 from planning.robot_model import RobotModel

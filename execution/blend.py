@@ -16,11 +16,9 @@ collided.
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
 from execution.ruckig_segments import SegmentPlanner
-
-Array = npt.NDArray[np.float64]
+from gaide_core.types import Array
 
 # Keep chosen velocities strictly inside the limits: Ruckig refuses a target velocity that
 # exceeds its limit by a rounding error.

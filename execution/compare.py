@@ -22,14 +22,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 from scipy.signal import correlate
 
-from core.errors import ExecutionError
 from execution.joint_log import JointLog
 from execution.trajectory import TimedTrajectory
-
-Array = npt.NDArray[np.float64]
+from gaide_core.errors import ExecutionError
+from gaide_core.types import Array
 
 
 @dataclass(frozen=True, kw_only=True)

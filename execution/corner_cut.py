@@ -12,11 +12,9 @@ input; with f <= 0.45 the two cuts on one edge never overlap.
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
-
-Array = npt.NDArray[np.float64]
 
 FRACTIONS = (0.45, 0.25, 0.12)
 # Corners that turn less than this (rad) are left alone: blending passes them at speed.

@@ -15,12 +15,12 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
-from core.errors import ExecutionError
 from execution.joint_log import JointLog, log_csv
 from execution.ros_bags import ros_version_of, write_joint_state_bag, write_trajectory_bag
 from execution.staging import staged_outputs
 from execution.trajectory import TimedTrajectory
 from execution.trajectory_io import trajectory_csv, trajectory_json
+from gaide_core.errors import ExecutionError
 
 TRAJECTORY_FORMATS = ".csv, .json, .bag (ROS1) or a folder name without a suffix (ROS2)"
 LOG_FORMATS = ".csv, .bag (ROS1) or a folder name without a suffix (ROS2)"

@@ -17,12 +17,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import ExecutionError
 from execution.trajectory_io import read_csv_table
-
-Array = npt.NDArray[np.float64]
+from gaide_core.errors import ExecutionError
+from gaide_core.types import Array
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -12,10 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import TimingError
+from gaide_core.errors import TimingError
+from gaide_core.types import Array
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 
 def _vector(value: npt.ArrayLike, n: int, what: str, names: Sequence[str]) -> Array:

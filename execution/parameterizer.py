@@ -16,7 +16,7 @@ class TimeParameterizer(Protocol):
     ``path`` is (K, dof) rad; ``checker`` is the collision checker of the scene the path was
     planned in (its robot supplies the limits and joint names). Bad input (a short,
     non-finite or out-of-limit path, a colliding edge, bad limits) raises
-    :class:`core.errors.TimingError`."""
+    :class:`gaide_core.errors.TimingError`."""
 
     name: str
 

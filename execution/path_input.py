@@ -9,11 +9,10 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import TimingError
 from execution.limits import JointLimits
+from gaide_core.errors import TimingError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
-
-Array = npt.NDArray[np.float64]
 
 #: rad; consecutive waypoints closer than this are one waypoint.
 MIN_STEP = 1e-9

@@ -10,16 +10,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-import numpy.typing as npt
 from matplotlib.figure import Figure
 
-from core.atomic import write_bytes_atomic
-from core.errors import ExecutionError
 from execution.compare import CompareResult
 from execution.limits import JointLimits
 from execution.trajectory import TimedTrajectory
-
-Array = npt.NDArray[np.float64]
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import ExecutionError
 
 
 def _png(fig: Figure) -> bytes:

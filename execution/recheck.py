@@ -12,14 +12,12 @@ is covered as the checker covers an edge (resolution <= 2 x margin).
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 import ruckig
 
 from execution.limits import JointLimits
 from execution.ruckig_segments import MoveTable, profile_extrema
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
-
-Array = npt.NDArray[np.float64]
 
 
 def _extrema(traj: ruckig.Trajectory, dof: int) -> tuple[Array, Array]:

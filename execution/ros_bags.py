@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag1 import WriterError as Writer1Error
@@ -32,11 +31,11 @@ from rosbags.rosbag2 import WriterError as Writer2Error
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 
-from core.errors import ExecutionError
 from execution.joint_log import JointLog
 from execution.trajectory import TimedTrajectory
+from gaide_core.errors import ExecutionError
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"

@@ -19,8 +19,8 @@ import numpy.typing as npt
 import ruckig
 
 from execution.limits import JointLimits
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)

@@ -31,7 +31,6 @@ import numpy as np
 import numpy.typing as npt
 import ruckig
 
-from core.errors import TimingError
 from execution.blend import choose_velocities
 from execution.corner_cut import cut_corners
 from execution.limits import JointLimits, limits_for
@@ -41,9 +40,10 @@ from execution.ruckig_segments import SegmentChain, SegmentPlanner
 from execution.string_pull import pull_string
 from execution.timing_cfg import MAX_SAMPLES, TimingCfg, TimingMode
 from execution.trajectory import SegmentInfo, TimedTrajectory, TimingStatus
+from gaide_core.errors import TimingError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

@@ -16,16 +16,15 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 import pybullet as pb
 from scipy.spatial.transform import Rotation
 
-from core.errors import ExecutionError
+from gaide_core.errors import ExecutionError
+from gaide_core.types import Array
 from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere
 from planning.robot_config import resolve_uri
 from planning.robot_model import RobotModel
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

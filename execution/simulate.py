@@ -27,17 +27,15 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import ExecutionError
 from execution.joint_log import JointLog
 from execution.sim_world import SimWorld
 from execution.trajectory import TimedTrajectory
+from gaide_core.errors import ExecutionError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 
 class SimStatus(enum.Enum):

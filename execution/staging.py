@@ -1,4 +1,4 @@
-"""Staged outputs (:func:`~core.atomic.verify_file` re-exported for their writers): a reader sees the old file (or folder) or the new one, never half of one.
+"""Staged outputs (:func:`~gaide_core.atomic.verify_file` re-exported for their writers): a reader sees the old file (or folder) or the new one, never half of one.
 
 :func:`staged_outputs` hands out temporary sibling paths to write into and, only when every
 one of them was written without an error, renames them all into place. A failure anywhere
@@ -15,8 +15,8 @@ import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from core.atomic import verify_file
-from core.errors import ExecutionError, GaideError
+from gaide_core.atomic import verify_file
+from gaide_core.errors import ExecutionError, GaideError
 
 __all__ = ["staged_outputs", "verify_file"]
 

@@ -19,9 +19,8 @@ import numpy as np
 import numpy.typing as npt
 
 from execution.path_input import MIN_STEP
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
-
-Array = npt.NDArray[np.float64]
 
 
 def _coarse_valid(

@@ -6,7 +6,7 @@ import enum
 import math
 from dataclasses import dataclass
 
-from core.errors import TimingError
+from gaide_core.errors import TimingError
 
 # Hz: robot controllers run at 125-1,000 Hz (UR 500, Franka 1,000); a higher rate only makes
 # the files and the simulation longer (100 kHz wrote 160 MB and simulated for 10 minutes).

@@ -7,14 +7,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import TimingError
 from execution.limits import JointLimits
 from execution.ruckig_segments import SegmentChain
 from execution.timing_cfg import TimingMode
-
-Array = npt.NDArray[np.float64]
+from gaide_core.errors import TimingError
+from gaide_core.types import Array
 
 
 class TimingStatus(enum.Enum):

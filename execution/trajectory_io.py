@@ -24,15 +24,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import ExecutionError, TimingError
-from core.text_io import load_json
 from execution.limits import JointLimits
 from execution.timing_cfg import TimingMode
 from execution.trajectory import SegmentInfo, TimedTrajectory, TimingStatus
-
-Array = npt.NDArray[np.float64]
+from gaide_core.errors import ExecutionError, TimingError
+from gaide_core.text_io import load_json
+from gaide_core.types import Array
 
 FORMAT = "gaide-trajectory"
 COLUMNS = (("q", "pos"), ("qd", "vel"), ("qdd", "acc"), ("jerk", "jerk"))

@@ -8,14 +8,12 @@ interpolation of the controller-rate samples), at 1 kHz by default.
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import TimingError
 from execution.limits import JointLimits
 from execution.trajectory import TimedTrajectory
+from gaide_core.errors import TimingError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
-
-Array = npt.NDArray[np.float64]
 
 
 def resample(traj: TimedTrajectory, rate_hz: float) -> tuple[Array, Array, Array, Array, Array]:

@@ -1,1 +1,14 @@
 """Command line and end-to-end wiring of the GAIDE stack. No stage package imports this."""
+
+__all__ = [
+    "bench_perception",
+    "cli",
+    "commands",
+    "common",
+    "demo",
+    "flows",
+    "pictures",
+    "pipeline",
+    "scene_spec",
+    "synthetic",
+]

@@ -24,12 +24,12 @@ from typing import Any
 import numpy as np
 
 from calibration.targets import target_from_dict
-from core.errors import PerceptionError
-from core.transforms import transform_error
 from gaide.flows.calibrate import calibrate_bag
 from gaide.flows.perceive import perceive_bag
 from gaide.synthetic.record import load_ground_truth, record_scene, target_pose_path
 from gaide.synthetic.scene import fixed_scene, hand_eye_scene
+from gaide_core.errors import PerceptionError
+from gaide_core.transforms import transform_error
 from perception.bag_reader import read_bag
 from perception.cloud import CloudCfg, scene_cloud
 from perception.frames import ImageStream

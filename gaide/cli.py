@@ -16,7 +16,7 @@ import sys
 import traceback
 from typing import Any, NoReturn
 
-from core.errors import GaideError
+from gaide_core.errors import GaideError
 
 #: Exit code for an input or output the operating system refused.
 OS_ERROR_EXIT = 9

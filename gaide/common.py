@@ -8,8 +8,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from core.atomic import write_bytes_atomic
-from core.errors import ExecutionError
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import ExecutionError
 from planning.checker import CHECKERS, DEFAULT_CHECKER
 from planning.robot_setup import robot_and_spheres
 

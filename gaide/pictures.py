@@ -11,17 +11,16 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 import trimesh
 
-from core.atomic import write_file_atomic
-from core.errors import ExecutionError
 from gaide.synthetic.camera import look_at
 from gaide.synthetic.raycast import RaycastScene
+from gaide_core.atomic import write_file_atomic
+from gaide_core.errors import ExecutionError
+from gaide_core.types import Array
 from perception.depth import project
 from perception.frames import Intrinsics
 
-Array = npt.NDArray[np.float64]
 RGB = tuple[float, float, float]
 
 

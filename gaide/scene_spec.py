@@ -16,18 +16,14 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-import numpy.typing as npt
-
-from core.errors import ConfigError
+from gaide_core.errors import ConfigError
+from gaide_core.types import Array
 from planning.distance_field import CloudWorld
 from planning.families import FAMILIES, generate_problem
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 from planning.world import World
-
-Array = npt.NDArray[np.float64]
 
 _FAMILY = re.compile(r"^(?:family:)?(?P<family>[a-z_]+)(?::|\s+seed\s+)(?P<seed>\d+)$")
 HELP = (

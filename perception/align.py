@@ -4,14 +4,12 @@ nearest depth point that projects onto it, NaN where none does."""
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import PerceptionError
-from core.transforms import apply
+from gaide_core.errors import PerceptionError
+from gaide_core.transforms import apply
+from gaide_core.types import Array
 from perception.depth import Deprojector, project
 from perception.frames import Frames
-
-Array = npt.NDArray[np.float64]
 
 
 def depth_in_color(frames: Frames, index: int, deprojector: Deprojector | None = None) -> Array:

@@ -13,12 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import BagError
+from gaide_core.errors import BagError
+from gaide_core.types import Array
 from perception.bag_layout import StreamTopics, TopicMap
 from perception.bag_messages import decode_transform
 from perception.bag_scan import STREAMS, Scan
 from perception.bag_tf import lookup_static, rs_extrinsics_T, sdk_T_color_depth
-from perception.frames import Array, BagLayout
+from perception.frames import BagLayout
 
 logger = logging.getLogger(__name__)
 

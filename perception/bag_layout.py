@@ -28,7 +28,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from core.errors import BagError
+from gaide_core.errors import BagError
 from perception.frames import BagLayout
 
 IMAGE = "sensor_msgs/msg/Image"

@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import BagError
-from core.transforms import from_xyz_quat
-from perception.frames import Array, Intrinsics
+from gaide_core.errors import BagError
+from gaide_core.transforms import from_xyz_quat
+from gaide_core.types import Array
+from perception.frames import Intrinsics
 
 DEPTH_ENCODINGS = ("16UC1", "mono16")
 # color encoding -> (channels per pixel, channel indices giving R, G, B)

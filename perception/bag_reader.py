@@ -28,7 +28,8 @@ import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from core.errors import BagError
+from gaide_core.errors import BagError
+from gaide_core.types import Array
 from perception.bag_damage import BagDamage
 from perception.bag_extrinsics import T_color_depth
 from perception.bag_layout import (
@@ -45,7 +46,7 @@ from perception.bag_messages import (
     decode_joint_state,
 )
 from perception.bag_scan import STREAMS, Scan, library_errors, scan
-from perception.frames import Array, BagLayout, Frames, ImageStream, JointStates
+from perception.frames import BagLayout, Frames, ImageStream, JointStates
 from perception.rosbag1_reader import RecoveringReader
 
 logger = logging.getLogger(__name__)

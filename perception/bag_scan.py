@@ -21,10 +21,10 @@ from rosbags.rosbag2 import ReaderError as Reader2Error
 from rosbags.serde import SerdeError
 from rosbags.typesys import TypesysError
 
-from core.errors import BagError
+from gaide_core.errors import BagError
+from gaide_core.types import Array
 from perception.bag_layout import TopicMap
 from perception.bag_messages import decode_color, decode_depth, decode_transform, message_stamp_ns
-from perception.frames import Array
 
 logger = logging.getLogger(__name__)
 

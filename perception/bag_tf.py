@@ -32,9 +32,9 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from core.errors import BagError
-from core.transforms import invert, is_rigid, make_transform
-from perception.frames import Array
+from gaide_core.errors import BagError
+from gaide_core.transforms import invert, is_rigid, make_transform
+from gaide_core.types import Array
 
 # Rotation of an optical frame (x right, y down, z forward) in its body frame (x forward,
 # y left, z up), as realsense-ros publishes between camera_X_frame and camera_X_optical_frame.

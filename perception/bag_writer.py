@@ -39,8 +39,8 @@ from rosbags.rosbag2 import WriterError as Writer2Error
 from rosbags.serde import SerdeError
 from rosbags.typesys import TypesysError
 
-from core.errors import BagError
-from core.transforms import is_rigid
+from gaide_core.errors import BagError
+from gaide_core.transforms import is_rigid
 from perception.bag_builder import (
     STREAM_INFO,
     UINT32,

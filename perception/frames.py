@@ -15,9 +15,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import BagError
-
-Array = npt.NDArray[np.float64]
+from gaide_core.errors import BagError
+from gaide_core.types import Array
 
 
 class BagLayout(enum.Enum):

@@ -15,13 +15,12 @@ import os
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
-from core.atomic import write_file_atomic
-from core.errors import PerceptionError
-from core.native_output import quiet_native_output
+from gaide_core.atomic import write_file_atomic
+from gaide_core.errors import PerceptionError
+from gaide_core.native_output import quiet_native_output
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

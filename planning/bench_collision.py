@@ -28,9 +28,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from core.transforms import from_xyz_rpy
+from gaide_core.transforms import from_xyz_rpy
+from gaide_core.types import Array
 from planning.checker import make_checker
 from planning.collision import CollisionChecker, SphereCollisionChecker
 from planning.distance_field import CloudWorld
@@ -39,7 +39,6 @@ from planning.primitives import Box, Cylinder, Primitive, PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

@@ -10,7 +10,7 @@ pre-check take the :class:`~planning.collision.CollisionChecker` protocol and so
 
 from __future__ import annotations
 
-from core.errors import ConfigError
+from gaide_core.errors import ConfigError
 from planning.collision import CollisionChecker, SphereCollisionChecker
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel

@@ -40,13 +40,13 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.kinematics import BatchKinematics
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 from planning.world import EmptyWorld, World
 
-Array = npt.NDArray[np.float64]
 Mask = npt.NDArray[np.bool_]
 
 # Edges of at least this many sub-steps get a coarse pass first, at every this many sub-steps.

@@ -13,13 +13,12 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-import numpy.typing as npt
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 # Memory the lattice build holds per cell at its peak: the float32 field, the occupancy

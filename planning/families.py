@@ -25,8 +25,9 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
-from core.errors import PlanningError
-from core.transforms import from_xyz_rpy
+from gaide_core.errors import PlanningError
+from gaide_core.transforms import from_xyz_rpy
+from gaide_core.types import Array
 from planning.checker import endpoint_checker, make_checker
 from planning.collision import CollisionChecker
 from planning.ik import IKCfg, solve_ik
@@ -34,8 +35,6 @@ from planning.primitives import Box, Cylinder, Primitive, PrimitiveWorld
 from planning.problem import Problem, difficulty
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
-
-Array = npt.NDArray[np.float64]
 
 TABLE_TOP = -0.02  # m
 FAMILIES = ("tabletop", "box", "bins", "shelf_i", "shelf_ii", "shelf_iii")

@@ -21,7 +21,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
 from planning.collision import CollisionChecker
 from planning.families import CATEGORIES, FAMILIES, generate_problem, split_seed
 from planning.path_check import check_path

@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from core.atomic import write_file_atomic
-from core.errors import PlanningError
+from gaide_core.atomic import write_file_atomic
+from gaide_core.errors import PlanningError
 from planning.harness import HarnessResult
 
 LABELS = {

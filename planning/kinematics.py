@@ -11,10 +11,9 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from core.errors import RobotModelError
+from gaide_core.errors import RobotModelError
+from gaide_core.types import Array
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 

@@ -10,15 +10,13 @@ obstacle (closest distance <= 0).
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 import pybullet as pb
 from scipy.spatial.transform import Rotation
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 
 class MeshReference:

@@ -19,11 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
 from planning.distance_field import CloudWorld
 from planning.neural.sampler import Sampler, cached_sampler
-from planning.planner import Array, PlanResult, PlanStatus, check_budget, check_endpoints
+from planning.planner import PlanResult, PlanStatus, check_budget, check_endpoints
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.scene_views import surface_cloud

@@ -37,9 +37,10 @@ from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
-from planning.planner import Array, PlanResult, PlanStatus, check_budget, check_endpoints
+from planning.planner import PlanResult, PlanStatus, check_budget, check_endpoints
 
 log = logging.getLogger(__name__)
 

@@ -17,10 +17,11 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
 from planning.ompl_planners import ANYTIME_PLANNERS, OmplPlanner
-from planning.planner import Array, PlanResult, PlanStatus, check_endpoints, path_length
+from planning.planner import PlanResult, PlanStatus, check_endpoints, path_length
 from planning.rrtc import CompiledRRTConnect, RRTCCfg, shorten
 from planning.shortcut import resample
 

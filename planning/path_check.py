@@ -10,14 +10,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from gaide_core.types import Array
 from planning.collision import SphereCollisionChecker
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
-
-Array = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -14,12 +14,10 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
-
-Array = npt.NDArray[np.float64]
 
 
 class PlanStatus(enum.Enum):

@@ -6,17 +6,15 @@ from pathlib import Path
 
 import matplotlib
 
-from core.atomic import write_file_atomic
-from core.errors import PlanningError
+from gaide_core.atomic import write_file_atomic
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-import numpy.typing as npt
 
 from planning.collision import CollisionChecker
-
-Array = npt.NDArray[np.float64]
 
 
 def draw_spheres(ax, centers: Array, radii: Array, color: str, alpha: float = 0.35) -> None:  # type: ignore[no-untyped-def]

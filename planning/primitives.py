@@ -25,12 +25,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import PlanningError
-from core.transforms import to_xyz_quat
-
-Array = npt.NDArray[np.float64]
+from gaide_core.errors import PlanningError
+from gaide_core.transforms import to_xyz_quat
+from gaide_core.types import Array
 
 QUAT_NORM_TOL = 1e-3  # |norm - 1| a file's quaternion may have (6 printed digits pass)
 _RIGID_TOL = 1e-6  # orthonormality and det of a pose's rotation
@@ -53,7 +51,7 @@ def show(value: Any) -> str:
 
 
 def _check_pose(pose: Array, what: str) -> None:
-    # In plain floats: numpy's calls on a 4x4 (core.transforms.is_rigid) cost 4x more than
+    # In plain floats: numpy's calls on a 4x4 (gaide_core.transforms.is_rigid) cost 4x more than
     # the arithmetic, and every obstacle of every problem file passes here.
     try:
         T = np.asarray(pose, dtype=float)

@@ -35,7 +35,7 @@ the robot (see :mod:`planning.primitives` for obstacles). Joint limits and colli
 not checked here: the harness counts such problems apart.
 
 Files are read as UTF-8, at most ``MAX_FILE_BYTES``; YAML through the safe loaders only
-(libyaml's when installed), with :mod:`core.text_io`'s limits on nesting and aliases (an alias bomb
+(libyaml's when installed), with :mod:`gaide_core.text_io`'s limits on nesting and aliases (an alias bomb
 is refused before anything is built). Anything else is one :class:`PlanningError` line
 naming the file, the problem (index and name) and the field.
 """
@@ -52,11 +52,10 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from core.errors import PlanningError
-from core.text_io import one_line, parse_yaml, read_text
+from gaide_core.errors import PlanningError
+from gaide_core.text_io import one_line, parse_yaml, read_text
+from gaide_core.types import Array
 from planning.primitives import PrimitiveWorld, numbers, show
-
-Array = npt.NDArray[np.float64]
 
 DIFFICULTIES = ("free2free", "free2tight", "tight2free", "tight2tight")
 PROBLEM_KEYS = ("name", "family", "seed", "difficulty", "start", "goal", "obstacles")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.errors import ConfigError, PlanningError
+from gaide_core.errors import ConfigError, PlanningError
 from planning.planner import Planner
 
 CLASSICAL = ("rrtconnect", "rrtstar", "informed_rrtstar", "bitstar", "aorrtc")

@@ -12,13 +12,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import ConfigError
-from core.text_io import load_yaml
-from core.transforms import from_xyz_rpy
-
-Array = npt.NDArray[np.float64]
+from gaide_core.errors import ConfigError
+from gaide_core.text_io import load_yaml
+from gaide_core.transforms import from_xyz_rpy
+from gaide_core.types import Array
 
 DEFAULT_CONFIG = Path(__file__).parent / "data" / "ur5.yaml"
 

@@ -18,10 +18,10 @@ import numpy.typing as npt
 import pinocchio as pin
 import trimesh
 
-from core.errors import RobotModelError
+from gaide_core.errors import RobotModelError
+from gaide_core.types import Array
 from planning.robot_config import RobotConfig, load_robot_config
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

@@ -20,12 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker, SphereCollisionChecker
 from planning.compiled import rrtc_kernel, shortcut_kernel
 from planning.compiled.tables import Tables, checker_tables
 from planning.planner import (
-    Array,
     PlanResult,
     PlanStatus,
     check_budget,

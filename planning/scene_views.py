@@ -9,11 +9,10 @@ import numpy.typing as npt
 import open3d as o3d
 import trimesh
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.primitives import PrimitiveWorld, primitive_mesh
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 
 def surface_cloud(world: PrimitiveWorld, n: int, rng: np.random.Generator) -> Array:

@@ -20,9 +20,10 @@ import time
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
-from planning.planner import Array, path_length
+from planning.planner import path_length
 
 # A shortcut must save at least this much (rad): smaller savings are rounding noise.
 _MIN_SAVING = 1e-9

@@ -18,11 +18,10 @@ import numpy.typing as npt
 import pinocchio as pin
 import yaml
 
-from core.errors import RobotModelError
-from core.text_io import load_yaml
+from gaide_core.errors import RobotModelError
+from gaide_core.text_io import load_yaml
+from gaide_core.types import Array
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

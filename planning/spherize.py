@@ -20,11 +20,11 @@ import numpy.typing as npt
 import trimesh
 from scipy.cluster.vq import kmeans2
 
-from core.errors import RobotModelError
+from gaide_core.errors import RobotModelError
+from gaide_core.types import Array
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

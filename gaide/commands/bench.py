@@ -11,9 +11,9 @@ from typing import Any
 
 from tqdm import tqdm
 
-from core.errors import ConfigError
 from gaide.commands.execution import add_bench_parser
 from gaide.common import add_checker_option, print_table, robot_and_spheres, seed, write_json
+from gaide_core.errors import ConfigError
 from planning.bench_collision import CollisionBenchCfg, run_collision_benchmark
 
 
@@ -169,7 +169,7 @@ def cmd_perception(args: argparse.Namespace) -> int:
 def cmd_planning(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from core.errors import PlanningError
+    from gaide_core.errors import PlanningError
     from planning.families import parse_families
     from planning.harness import HarnessCfg, run_harness
     from planning.harness_report import category_table, markdown_table, plot, text_table

@@ -11,11 +11,11 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import ConfigError, ExecutionError, TimingError
-from core.text_io import load_json
 from gaide.common import add_checker_option, print_table, robot_and_spheres, write_json
 from gaide.scene_spec import HELP as SCENE_HELP
 from gaide.scene_spec import Scene, load_scene
+from gaide_core.errors import ConfigError, ExecutionError, TimingError
+from gaide_core.text_io import load_json
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from core.errors import ConfigError, PlanningError
 from gaide.common import add_checker_option, print_table, robot_and_spheres, seed, write_json
+from gaide_core.errors import ConfigError, PlanningError
 from planning.families import FAMILIES, generate_problem, parse_families, split_seed
 
 

@@ -9,11 +9,11 @@ import numpy as np
 
 from calibration.overlay import save_png
 from calibration.targets import parse_target
-from core.errors import ConfigError
-from core.transforms import from_xyz_quat, to_xyz_quat
 from gaide.common import print_table, robot_and_spheres, write_json
 from gaide.flows.calibrate import calibrate_bag
 from gaide.flows.perceive import perceive_bag
+from gaide_core.errors import ConfigError
+from gaide_core.transforms import from_xyz_quat, to_xyz_quat
 from perception.cloud import CloudCfg, save_ply
 from perception.render import render_png
 from planning.robot_model import load_robot

@@ -41,7 +41,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     robot, spheres = robot_and_spheres(args.robot)
     rng = np.random.default_rng(args.seed)
     if args.frames < 1:
-        from core.errors import ConfigError
+        from gaide_core.errors import ConfigError
 
         raise ConfigError(f"--frames must be >= 1, got {args.frames}")
     if args.mode == "fixed":

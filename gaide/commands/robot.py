@@ -7,8 +7,8 @@ from collections import Counter
 
 import numpy as np
 
-from core.errors import ConfigError
 from gaide.common import print_table, robot_and_spheres
+from gaide_core.errors import ConfigError
 from planning.checker import make_checker
 from planning.plot import render_scene
 from planning.robot_model import load_robot
@@ -76,7 +76,7 @@ def parse_configuration(text: str | None, robot) -> np.ndarray:  # type: ignore[
         values = None
     if values is None:
         names = sorted(robot.config.named_configurations)
-        from core.errors import RobotModelError
+        from gaide_core.errors import RobotModelError
 
         raise RobotModelError(
             f"'{text}' is neither comma-separated joint values nor a named configuration {names}"

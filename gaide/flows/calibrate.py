@@ -15,13 +15,12 @@ from calibration.overlay import draw_overlay
 from calibration.pnp import solve_pose
 from calibration.result import CalibrationResult
 from calibration.targets import Target
-from core.errors import BagError, CalibrationError
+from gaide_core.errors import BagError, CalibrationError
+from gaide_core.types import Array
 from perception.align import depth_in_color
 from perception.bag_reader import read_bag
 from perception.frames import Frames
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

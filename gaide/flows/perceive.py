@@ -6,10 +6,10 @@ import logging
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
 from calibration.result import CalibrationResult, load_calibration
-from core.errors import PerceptionError
+from gaide_core.errors import PerceptionError
+from gaide_core.types import Array
 from perception.bag_reader import read_bag
 from perception.cloud import CloudCfg, SceneCloud, scene_cloud
 from perception.frames import Frames
@@ -17,7 +17,6 @@ from planning.checker import make_checker
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 

@@ -7,7 +7,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from core.errors import ConfigError
+from gaide_core.errors import ConfigError
 
 
 def number(

@@ -12,9 +12,9 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from core.errors import ConfigError
 from execution.timing_cfg import MAX_RATE_HZ, TimingCfg, TimingMode
 from gaide.pipeline import checks
+from gaide_core.errors import ConfigError
 from planning.checker import CHECKERS
 from planning.registry import CLASSICAL, COMPILED, HYBRID, NEURAL
 

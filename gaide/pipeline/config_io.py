@@ -15,9 +15,9 @@ from typing import Any
 
 import yaml
 
-from core.errors import ConfigError
-from core.text_io import load_yaml, parse_yaml
 from gaide.pipeline.config import RunCfg
+from gaide_core.errors import ConfigError
+from gaide_core.text_io import load_yaml, parse_yaml
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEFAULTS = DATA / "run.yaml"

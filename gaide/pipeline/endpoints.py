@@ -18,16 +18,14 @@ import enum
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import ConfigError, PlanningError
-from core.transforms import from_xyz_quat
+from gaide_core.errors import ConfigError, PlanningError
+from gaide_core.transforms import from_xyz_quat
+from gaide_core.types import Array
 from planning.checker import endpoint_checker
 from planning.collision import CollisionChecker
 from planning.ik import IKCfg, solve_ik
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 FORMS = (
     "'recorded', a named configuration, a,b,c,d,e,f (rad), pose:x,y,z,qx,qy,qz,qw or xyz:x,y,z (m)"

@@ -9,17 +9,15 @@ import time
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 from scipy.spatial import cKDTree
 
-from core.errors import ExecutionError
 from execution.trajectory import TimedTrajectory
 from gaide.pipeline.config import RunCfg
 from gaide.pipeline.motion import Planned
 from gaide.pipeline.runner import StageRecord, StageRunner
 from gaide.pipeline.sense import Sensed
-
-Array = npt.NDArray[np.float64]
+from gaide_core.errors import ExecutionError
+from gaide_core.types import Array
 
 #: Export format -> output name in the run folder.
 EXPORT_NAMES = {

@@ -11,18 +11,17 @@ import io
 
 import matplotlib
 
+from gaide_core.types import Array
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-import numpy.typing as npt
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
 from planning.collision import CollisionChecker
 from planning.plot import draw_spheres
-
-Array = npt.NDArray[np.float64]
 
 MAX_POINTS = 12_000  # cloud points drawn at most (an even subset)
 

@@ -8,9 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from core.errors import PlanningError, TimingError
 from execution.parameterizer import TimeParameterizer
 from execution.trajectory import TimedTrajectory
 from gaide.pipeline import figures
@@ -18,12 +16,12 @@ from gaide.pipeline.config import PlanningCfg, RunCfg
 from gaide.pipeline.endpoints import Resolved, reference_configuration, resolve
 from gaide.pipeline.runner import StageRecord, StageRunner
 from gaide.pipeline.sense import CameraPose, Sensed, Setup
+from gaide_core.errors import PlanningError, TimingError
+from gaide_core.types import Array
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
 from planning.distance_field import CloudWorld
 from planning.planner import Planner, PlanResult, PlanStatus
-
-Array = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from core.errors import GaideError
 from execution.parameterizer import TimeParameterizer
 from gaide.pipeline.config import RunCfg
 from gaide.pipeline.config_io import dump_cfg
@@ -27,6 +26,7 @@ from gaide.pipeline.sense import (
     perception_stage,
     setup_stage,
 )
+from gaide_core.errors import GaideError
 
 log = logging.getLogger(__name__)
 

@@ -30,8 +30,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from core.atomic import write_bytes_atomic
-from core.errors import (
+from execution.staging import staged_outputs, verify_file
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import (
     BagError,
     CalibrationError,
     ConfigError,
@@ -43,7 +44,6 @@ from core.errors import (
     RobotModelError,
     TimingError,
 )
-from execution.staging import staged_outputs, verify_file
 
 #: The exception (and so the exit code) of each stage.
 STAGE_ERRORS: dict[str, type[GaideError]] = {

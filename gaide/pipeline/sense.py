@@ -18,18 +18,17 @@ import yaml
 
 from calibration.result import CalibrationResult, load_calibration
 from calibration.targets import parse_target
-from core.errors import BagError, CalibrationError, ConfigError, ModelError
-from core.transforms import from_xyz_quat, to_xyz_quat
 from gaide.pipeline import figures
 from gaide.pipeline.config import RunCfg
 from gaide.pipeline.endpoints import Endpoint, parse_endpoint
 from gaide.pipeline.runner import StageRecord, StageRunner
+from gaide_core.errors import BagError, CalibrationError, ConfigError, ModelError
+from gaide_core.transforms import from_xyz_quat, to_xyz_quat
+from gaide_core.types import Array
 from perception.cloud import CloudCfg, SceneCloud, save_ply
 from planning.robot_model import RobotModel
 from planning.robot_setup import robot_and_spheres
 from planning.sphere_model import SphereModel
-
-Array = npt.NDArray[np.float64]
 
 log = logging.getLogger(__name__)
 
@@ -94,7 +93,7 @@ def _resolve_planner(cfg: RunCfg, robot: RobotModel) -> str:
     rrtc; any other name as given."""
     if cfg.planning.planner != "auto":
         return cfg.planning.planner
-    from core.errors import GaideError
+    from gaide_core.errors import GaideError
     from planning.neural.checkpoint import load_checkpoint, shipped_checkpoint
 
     weights = cfg.planning.checkpoint or shipped_checkpoint("gaide")

@@ -7,11 +7,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import ConfigError
-from core.transforms import make_transform
+from gaide_core.errors import ConfigError
+from gaide_core.transforms import make_transform
+from gaide_core.types import Array
 from perception.frames import Intrinsics
-
-Array = npt.NDArray[np.float64]
 
 
 def look_at(eye: npt.ArrayLike, target: npt.ArrayLike) -> Array:

@@ -11,16 +11,16 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from core.errors import ConfigError
-from core.text_io import load_yaml
-from core.transforms import to_xyz_quat
 from gaide.synthetic.raycast import RaycastScene, Texture
 from gaide.synthetic.scene import SyntheticScene, obstacle_meshes, target_plate
+from gaide_core.errors import ConfigError
+from gaide_core.text_io import load_yaml
+from gaide_core.transforms import to_xyz_quat
+from gaide_core.types import Array
 from perception.bag_writer import write_bag
 from perception.frames import BagLayout, Frames, ImageStream, JointStates
 from planning.robot_model import RobotModel
 
-Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 FRAME_PERIOD_NS = 33_333_333  # 30 Hz

@@ -6,20 +6,18 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 import trimesh
 from scipy.spatial.transform import Rotation
 
 from calibration.targets import Charuco, Target
-from core.errors import ConfigError
-from core.transforms import from_xyz_rpy, invert
 from gaide.synthetic.camera import VirtualCamera, d435_like, look_at
+from gaide_core.errors import ConfigError
+from gaide_core.transforms import from_xyz_rpy, invert
+from gaide_core.types import Array
 from planning.collision import CollisionChecker
 from planning.ik import IKCfg, solve_ik
 from planning.primitives import Box, PrimitiveWorld, primitive_mesh
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 TABLE_TOP = -0.02  # m: the robot stands on a 2 cm adapter plate on the table
 

@@ -5,3 +5,14 @@ sphere model and world once as flat arrays (:mod:`planning.compiled.layout`), an
 kernels (:mod:`~planning.compiled.geometry`, :mod:`~planning.compiled.validity`) take only
 those. :class:`~planning.compiled.checker.CompiledChecker` is the Python face.
 """
+
+__all__ = [
+    "checker",
+    "geometry",
+    "layout",
+    "rrtc_kernel",
+    "shortcut_kernel",
+    "tables",
+    "validity",
+    "warmup",
+]

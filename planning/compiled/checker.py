@@ -11,12 +11,11 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import Array
 from planning.collision import Mask, SphereCollisionChecker
 from planning.compiled import validity
 from planning.compiled.tables import checker_tables
-
-Array = npt.NDArray[np.float64]
 
 
 class CompiledChecker(SphereCollisionChecker):

@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from gaide_core.types import FloatArray, IntArray
 from planning.compiled.layout import (
     JOINT_PRISMATIC,
     JOINT_REVOLUTE,
@@ -31,8 +32,6 @@ from planning.compiled.layout import (
     Off,
 )
 
-IntArray = npt.NDArray[np.int64]
-FloatArray = npt.NDArray[np.float64]
 Field = npt.NDArray[np.float32]
 
 

@@ -22,11 +22,9 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-import numpy.typing as npt
 from numba import njit
 
-IntArray = npt.NDArray[np.int64]
-FloatArray = npt.NDArray[np.float64]
+from gaide_core.types import FloatArray, IntArray
 
 # -- int slots ------------------------------------------------------------------------------
 # Links are ordered by the joint that carries them, spheres by their link.

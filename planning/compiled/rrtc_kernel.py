@@ -19,15 +19,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 from numba import njit
 
+from gaide_core.types import FloatArray, IntArray
 from planning.compiled.geometry import Field
 from planning.compiled.layout import Off, offsets
 from planning.compiled.validity import config_ok, edge_ok
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 RUNNING = 0
 JOINED = 1

@@ -17,15 +17,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 from numba import njit
 
+from gaide_core.types import FloatArray, IntArray
 from planning.compiled.geometry import Field
 from planning.compiled.layout import Off, offsets
 from planning.compiled.validity import edge_ok
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @njit(cache=True, inline="always")

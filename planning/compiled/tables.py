@@ -5,7 +5,7 @@
 :class:`~planning.kinematics.BatchKinematics`) and the sphere tables from the numpy reference
 checker, so both backends check the same spheres, pairs and displacement bounds, and exports
 an empty, cloud or primitive world; any other world is refused with a
-:class:`~core.errors.PlanningError` naming it.
+:class:`~gaide_core.errors.PlanningError` naming it.
 """
 
 from __future__ import annotations
@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
+from gaide_core.types import FloatArray, IntArray
 from planning.compiled import layout as L
 from planning.distance_field import CloudWorld
 from planning.primitives import Box, Cylinder, PrimitiveWorld
@@ -24,9 +25,6 @@ from planning.world import EmptyWorld, World
 
 if TYPE_CHECKING:
     from planning.collision import SphereCollisionChecker
-
-IntArray = npt.NDArray[np.int64]
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

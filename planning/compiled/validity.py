@@ -23,9 +23,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
 from numba import njit
 
+from gaide_core.types import FloatArray, IntArray
 from planning.collision import CLEARANCE_CAP, MIN_STEP_DIVISOR
 from planning.compiled.geometry import (
     Field,
@@ -38,10 +38,6 @@ from planning.compiled.geometry import (
     place_root,
 )
 from planning.compiled.layout import Off, offsets
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-BoolArray = npt.NDArray[np.bool_]
 
 
 @njit(cache=True, inline="always")

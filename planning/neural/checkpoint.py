@@ -13,8 +13,8 @@ from typing import Any
 import torch
 from torch import nn
 
-from core.atomic import write_bytes_atomic
-from core.errors import ModelError
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import ModelError
 from planning.neural.embodiment import Embodiment
 from planning.neural.models import MODEL_KINDS, ModelCfg, build_model
 from planning.robot_model import RobotModel

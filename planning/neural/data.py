@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from core.errors import GaideError, ModelError
+from gaide_core.errors import GaideError, ModelError
 from planning.checker import CHECKERS, make_checker
 from planning.families import CATEGORIES, FAMILIES, generate_problem, split_seed
 from planning.oracle import OracleCfg, oracle_path

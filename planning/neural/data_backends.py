@@ -17,8 +17,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from core.atomic import write_bytes_atomic
-from core.errors import ModelError
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import ModelError
 from planning.neural.data import FORMAT, MANIFEST, DataCfg, make_shard, read_manifest, shard_name
 
 log = logging.getLogger(__name__)

@@ -16,11 +16,10 @@ import numpy as np
 import numpy.typing as npt
 import trimesh
 
-from core.errors import RobotModelError
+from gaide_core.errors import RobotModelError
+from gaide_core.types import Array
 from planning.kinematics import BatchKinematics
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

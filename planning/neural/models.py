@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from core.errors import ModelError
+from gaide_core.errors import ModelError
 from planning.neural.embodiment import Embodiment
 from planning.neural.pointnet import SetAbstraction
 

@@ -8,16 +8,14 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-import numpy.typing as npt
 import torch
 
-from core.errors import ModelError, PerceptionError
+from gaide_core.errors import ModelError, PerceptionError
+from gaide_core.types import Array
 from planning.neural.checkpoint import load_checkpoint
 from planning.neural.embodiment import RobotCloud
 from planning.neural.models import encode_scene
 from planning.robot_model import RobotModel
-
-Array = npt.NDArray[np.float64]
 
 # The scene cloud must lie around the robot, in the base frame: points further than this
 # from the base (m) are not of the workspace.

@@ -27,7 +27,7 @@ import numpy.typing as npt
 import torch
 from torch import nn
 
-from core.errors import ModelError
+from gaide_core.errors import ModelError
 from planning.neural.checkpoint import (
     Checkpoint,
     file_sha256,

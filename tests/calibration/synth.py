@@ -12,9 +12,9 @@ import numpy as np
 import numpy.typing as npt
 
 from calibration.targets import Target
-from core.transforms import from_xyz_rpy, make_transform
+from gaide_core.transforms import from_xyz_rpy, make_transform
+from gaide_core.types import Array
 
-Array = npt.NDArray[np.float64]
 Image = npt.NDArray[np.uint8]
 
 WIDTH, HEIGHT = 848, 480

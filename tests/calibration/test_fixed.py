@@ -11,8 +11,8 @@ from calibration.fixed import calibrate_fixed, load_target_pose
 from calibration.overlay import draw_overlay, save_png
 from calibration.result import Mode, load_calibration
 from calibration.targets import SingleTag, TagGrid
-from core.errors import CalibrationError
-from core.transforms import from_xyz_rpy, transform_error
+from gaide_core.errors import CalibrationError
+from gaide_core.transforms import from_xyz_rpy, transform_error
 from tests.calibration.synth import K, depth_of_plane, look_at_target, render
 
 TAG = SingleTag(5, 0.15)

@@ -6,8 +6,8 @@ import pytest
 from calibration.hand_eye import METHODS, calibrate_hand_eye
 from calibration.result import Mode
 from calibration.targets import SingleTag
-from core.errors import CalibrationError
-from core.transforms import from_xyz_rpy, invert, make_transform, transform_error
+from gaide_core.errors import CalibrationError
+from gaide_core.transforms import from_xyz_rpy, invert, make_transform, transform_error
 from tests.calibration.synth import K, look_at_target, render
 
 TAG = SingleTag(7, 0.08)

@@ -5,8 +5,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from calibration.pnp import robust_average
-from core.errors import CalibrationError
-from core.transforms import from_xyz_rpy, make_transform, transform_error
+from gaide_core.errors import CalibrationError
+from gaide_core.transforms import from_xyz_rpy, make_transform, transform_error
 
 
 def test_robust_average_rejects_outliers(rng: np.random.Generator) -> None:

@@ -11,7 +11,7 @@ from calibration.detect import detect, scan
 from calibration.fixed import calibrate_fixed
 from calibration.pnp import solve_pose
 from calibration.targets import SingleTag
-from core.errors import CalibrationError
+from gaide_core.errors import CalibrationError
 from tests.conftest import shared_data
 
 

@@ -18,8 +18,8 @@ from calibration.result import (
     Spread,
     load_calibration,
 )
-from core.errors import CalibrationError
-from core.transforms import make_transform
+from gaide_core.errors import CalibrationError
+from gaide_core.transforms import make_transform
 
 finite = st.floats(-10.0, 10.0, allow_nan=False)
 positive = st.floats(0.0, 100.0, allow_nan=False)

@@ -16,8 +16,8 @@ from calibration.targets import (
     target_from_dict,
     to_dict,
 )
-from core.errors import CalibrationError
-from core.transforms import make_transform, transform_error
+from gaide_core.errors import CalibrationError
+from gaide_core.transforms import make_transform, transform_error
 from tests.calibration.synth import K, look_at_target, render
 
 lengths = st.floats(0.005, 0.5, allow_nan=False)

@@ -3,10 +3,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.errors import ExecutionError
 from execution.compare import CompareCfg, compare
 from execution.joint_log import JointLog
 from execution.trajectory import TimedTrajectory
+from gaide_core.errors import ExecutionError
 
 
 def _log_of(

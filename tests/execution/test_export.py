@@ -7,12 +7,12 @@ import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from core.errors import ExecutionError
 from execution.export import read_log, write_log, write_trajectory
 from execution.joint_log import JointLog
 from execution.ros_bags import read_trajectory_bag
 from execution.trajectory import TimedTrajectory
 from execution.trajectory_io import read_trajectory
+from gaide_core.errors import ExecutionError
 from planning.robot_model import RobotModel
 
 

@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import ExecutionError
 from execution.joint_log import JointLog, read_log_csv
+from gaide_core.errors import ExecutionError
 
 ROSTOPIC = """%time,field.header.seq,field.header.stamp,field.header.frame_id,field.name0,field.name1,field.position0,field.position1,field.velocity0,field.velocity1,field.effort0,field.effort1
 1700000000100000000,1,1700000000100000000,,a,b,0.2,1.0,0.0,0.0,0,0

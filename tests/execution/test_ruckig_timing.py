@@ -5,10 +5,10 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from core.errors import TimingError
 from execution.ruckig_timing import RuckigParameterizer
 from execution.timing_cfg import TimingCfg, TimingMode
 from execution.verify import distance_to_path, limit_violations, path_deviation, swept_collisions
+from gaide_core.errors import TimingError
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
 from planning.primitives import PrimitiveWorld, Sphere

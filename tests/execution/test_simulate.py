@@ -3,9 +3,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.errors import ExecutionError
 from execution.simulate import SimCfg, SimStatus, simulate
 from execution.trajectory import TimedTrajectory
+from gaide_core.errors import ExecutionError
 from planning.collision import CollisionChecker
 from planning.primitives import Box, PrimitiveWorld
 from planning.robot_model import RobotModel

@@ -8,12 +8,12 @@ import pytest
 import yaml
 
 from calibration.targets import target_from_dict
-from core.errors import CalibrationError, PerceptionError
-from core.transforms import transform_error
 from gaide.flows.calibrate import calibrate_bag
 from gaide.flows.perceive import perceive_bag
 from gaide.synthetic.record import load_ground_truth, record_scene, target_pose_path
 from gaide.synthetic.scene import fixed_scene, hand_eye_scene
+from gaide_core.errors import CalibrationError, PerceptionError
+from gaide_core.transforms import transform_error
 from perception.bag_reader import read_bag
 from perception.frames import BagLayout
 from planning.checker import make_checker

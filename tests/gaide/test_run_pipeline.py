@@ -17,13 +17,13 @@ import numpy as np
 import pytest
 import yaml
 
-from core.errors import ConfigError
 from gaide.cli import main
 from gaide.pipeline.config_io import effective_dict, load_cfg
 from gaide.pipeline.endpoints import EndpointKind, parse_endpoint
 from gaide.pipeline.run import STAGES
 from gaide.synthetic.record import record_scene
 from gaide.synthetic.scene import fixed_scene
+from gaide_core.errors import ConfigError
 from planning.robot_model import RobotModel
 from tests.conftest import ROOT, run_cli, shared_data
 
@@ -242,8 +242,8 @@ def test_settings_precedence_defaults_then_file_then_flags(
 
 
 def test_a_stage_reports_its_own_code_except_for_settings_bags_and_models() -> None:
-    from core.errors import BagError, ModelError, PerceptionError, PlanningError
     from gaide.pipeline.runner import stage_error
+    from gaide_core.errors import BagError, ModelError, PerceptionError, PlanningError
 
     err = stage_error(PerceptionError("the scene cloud has 3 points"), "planning")
     assert type(err) is PlanningError and str(err) == "planning: the scene cloud has 3 points"

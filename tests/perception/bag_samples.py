@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from core.transforms import from_xyz_rpy
+from gaide_core.transforms import from_xyz_rpy
 from perception.bag_builder import MessageBuilder, serialize
 from perception.frames import Array, BagLayout, Frames, ImageStream, Intrinsics, JointStates
 

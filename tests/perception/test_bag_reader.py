@@ -14,8 +14,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from core.errors import BagError
-from core.transforms import from_xyz_rpy, invert, rotation_angle
+from gaide_core.errors import BagError
+from gaide_core.transforms import from_xyz_rpy, invert, rotation_angle
 from perception.bag_builder import MessageBuilder
 from perception.bag_layout import detect_layout
 from perception.bag_messages import decode_camera_info, decode_color, decode_depth

@@ -17,7 +17,7 @@ from rosbags.rosbag1.reader import decompressors
 
 import perception.bag_builder as bag_builder
 import perception.bag_writer as bag_writer
-from core.errors import BagError
+from gaide_core.errors import BagError
 from perception.bag_reader import read_bag
 from perception.bag_writer import write_bag
 from perception.frames import BagLayout, Frames, ImageStream

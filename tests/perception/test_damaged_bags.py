@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from rosbags.rosbag1 import Reader
 
-from core.errors import BagError
+from gaide_core.errors import BagError
 from perception.bag_reader import read_bag
 from perception.bag_writer import SDK_STREAMS, write_bag
 from perception.frames import BagLayout, Frames

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.transforms import from_xyz_rpy
+from gaide_core.transforms import from_xyz_rpy
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
 from planning.planner import Array

@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-from core.errors import PlanningError
-from core.transforms import from_xyz_rpy
+from gaide_core.errors import PlanningError
+from gaide_core.transforms import from_xyz_rpy
 from planning.collision import SphereCollisionChecker
 from planning.distance_field import CloudWorld
 from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere

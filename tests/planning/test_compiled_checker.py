@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import ConfigError, PlanningError, RobotModelError
-from core.transforms import from_xyz_rpy
+from gaide_core.errors import ConfigError, PlanningError, RobotModelError
+from gaide_core.transforms import from_xyz_rpy
 from planning.checker import make_checker
 from planning.collision import SphereCollisionChecker
 from planning.compiled.checker import CompiledChecker

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
 from planning.checker import make_checker
 from planning.families import (
     FAMILIES,

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
 from planning import harness
 from planning.families import generate_problem, split_seed
 from planning.harness import HarnessCfg, run_harness

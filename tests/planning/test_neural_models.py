@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from core.errors import ModelError
+from gaide_core.errors import ModelError
 from planning.neural.checkpoint import Checkpoint, load_checkpoint, robot_signature, save_checkpoint
 from planning.neural.embodiment import Embodiment, RobotCloud, build_embodiment
 from planning.neural.models import MODEL_KINDS, Gaide, ModelCfg, build_model, graph_mask
@@ -198,7 +198,7 @@ def test_a_checkpoint_round_trips_and_refuses_what_it_is_not(
 def test_a_scene_cloud_outside_the_workspace_is_refused(
     robot: RobotModel, embodiment: Embodiment, tmp_path: Path
 ) -> None:
-    from core.errors import PerceptionError
+    from gaide_core.errors import PerceptionError
 
     sampler = NeuralSampler(_checkpoint("mpnet", robot, embodiment, tmp_path), robot)
     with pytest.raises(PerceptionError, match="non-empty"):

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
 from planning.families import generate_problem, split_seed

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from core.errors import ModelError
+from gaide_core.errors import ModelError
 from planning.neural.data import DataCfg, load_paths, read_manifest
 from planning.neural.data_backends import generate
 from planning.neural.models import ModelCfg

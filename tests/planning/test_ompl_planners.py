@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
 from planning.collision import CollisionChecker
 from planning.ompl_planners import (
     ANYTIME_PLANNERS,

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
 from planning.collision import CollisionChecker
 from planning.oracle import OracleCfg, oracle_path, oracle_quality
 from planning.planner import PlanStatus, path_length

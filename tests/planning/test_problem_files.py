@@ -17,8 +17,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from core.errors import PlanningError
-from core.transforms import from_xyz_rpy
+from gaide_core.errors import PlanningError
+from gaide_core.transforms import from_xyz_rpy
 from planning import harness
 from planning import problem as problem_module
 from planning.path_check import check_path
@@ -467,9 +467,9 @@ def test_alias_bombs_and_deep_nesting_are_refused(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, loader: str
 ) -> None:
     if loader == "python":  # the fallback without libyaml refuses the same files
-        import core.text_io
+        import gaide_core.text_io
 
-        monkeypatch.setattr(core.text_io, "_Loader", yaml.SafeLoader)
+        monkeypatch.setattr(gaide_core.text_io, "_Loader", yaml.SafeLoader)
     cases = [
         (BILLION_LAUGHS, "aliases expand to more than 1,000,000 nodes"),
         ("problems: &p [*p]\n", "alias *p (line 1) names no anchor before it"),

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import ConfigError, RobotModelError
+from gaide_core.errors import ConfigError, RobotModelError
 from planning.ik import solve_ik
 from planning.robot_config import load_robot_config
 from planning.robot_model import RobotModel, load_robot

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.errors import ConfigError, PlanningError
+from gaide_core.errors import ConfigError, PlanningError
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
 from planning.families import FAMILIES, generate_problem, split_seed

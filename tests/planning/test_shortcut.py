@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from core.errors import PlanningError
+from gaide_core.errors import PlanningError
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
 from planning.ompl_planners import make_planner

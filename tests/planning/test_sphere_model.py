@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from core.errors import RobotModelError
+from gaide_core.errors import RobotModelError
 from planning.robot_model import RobotModel, load_robot
 from planning.sphere_model import SphereModel, frame_mismatch
 from planning.spherize import SpherizeCfg, generate_spheres

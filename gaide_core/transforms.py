@@ -10,7 +10,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
-Array = npt.NDArray[np.float64]
+from gaide_core.types import Array
 
 
 def make_transform(rotation: Array | None = None, translation: Array | None = None) -> Array:

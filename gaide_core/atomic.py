@@ -7,7 +7,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from core.errors import GaideError
+from gaide_core.errors import GaideError
 
 
 def write_bytes_atomic(

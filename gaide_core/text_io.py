@@ -16,7 +16,7 @@ from typing import Any
 
 import yaml
 
-from core.errors import GaideError
+from gaide_core.errors import GaideError
 
 #: Largest text file read (bytes): settings and calibrations are a few kB.
 MAX_TEXT_BYTES = 16 * 1024 * 1024

@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from core.errors import ConfigError
-from core.text_io import MAX_YAML_ALIAS_NODES, load_json, load_yaml, parse_yaml, read_text
+from gaide_core.errors import ConfigError
+from gaide_core.text_io import MAX_YAML_ALIAS_NODES, load_json, load_yaml, parse_yaml, read_text
 
 BILLION_LAUGHS = "\n".join(
     ["a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]"]

@@ -3,7 +3,7 @@
 Nothing here imports another package of the project; every stage may import it.
 """
 
-from core.errors import (
+from gaide_core.errors import (
     BagError,
     CalibrationError,
     ConfigError,

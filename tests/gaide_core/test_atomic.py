@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from core.atomic import write_bytes_atomic
-from core.errors import TimingError
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import TimingError
 
 
 def test_an_atomic_write_replaces_the_file_with_the_usual_mode(tmp_path: Path) -> None:
