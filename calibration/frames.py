@@ -12,6 +12,7 @@ import numpy.typing as npt
 from calibration.detect import Detection, scan
 from calibration.pnp import FramePose, solve_pose
 from calibration.targets import Target
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import CalibrationError
 from gaide_core.types import Array
 
@@ -31,17 +32,7 @@ class Observation:
     reason: str = ""
 
 
-@dataclass(frozen=True, eq=False)
-class Camera:
-    """Validated intrinsics: ``K`` (3, 3) px, ``D`` (n,) OpenCV distortion, image size (px)."""
-
-    K: Array
-    D: Array
-    width: int
-    height: int
-
-
-def check_camera(images: Sequence[npt.NDArray[np.uint8]], K: Array, D: Array | None) -> Camera:
+def check_camera(images: Sequence[npt.NDArray[np.uint8]], K: Array, D: Array | None) -> Intrinsics:
     """Validate the images (a non-empty sequence, all one size) and the intrinsics."""
     if len(images) == 0:
         raise CalibrationError("no images given: calibration needs at least one")
@@ -49,17 +40,7 @@ def check_camera(images: Sequence[npt.NDArray[np.uint8]], K: Array, D: Array | N
     if len(shapes) != 1:
         raise CalibrationError(f"images differ in size {sorted(shapes)}: give one camera's images")
     height, width = shapes.pop()
-    K = np.asarray(K, np.float64)
-    if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
-        raise CalibrationError(
-            f"K must be a 3x3 camera matrix with positive focal lengths, got\n{K}"
-        )
-    D = np.zeros(5) if D is None else np.asarray(D, np.float64).ravel()
-    if D.size not in (0, 4, 5, 8, 12, 14) or not np.all(np.isfinite(D)):
-        raise CalibrationError(
-            f"D must hold 4, 5, 8, 12 or 14 OpenCV distortion coefficients, got {D.tolist()}"
-        )
-    return Camera(K, D, int(width), int(height))
+    return Intrinsics.checked(width, height, K, D, error=CalibrationError)
 
 
 def check_stamps(stamps_ns: Sequence[int] | None, n: int) -> list[int | None]:
@@ -73,7 +54,7 @@ def check_stamps(stamps_ns: Sequence[int] | None, n: int) -> list[int | None]:
 
 def observe(
     images: Sequence[npt.NDArray[np.uint8]],
-    camera: Camera,
+    camera: Intrinsics,
     target: Target,
     stamps: Sequence[int | None],
 ) -> list[Observation]:

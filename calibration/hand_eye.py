@@ -24,11 +24,12 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from calibration.detect import Detection
-from calibration.frames import Camera, check_camera, check_stamps, not_found_error, observe
+from calibration.frames import check_camera, check_stamps, not_found_error, observe
 from calibration.pnp import dist_coeffs, pose_difference, robust_average
 from calibration.result import CalibrationResult, FrameResidual, MethodResult, Mode, Spread
 from calibration.scale_check import check_target_scale
 from calibration.targets import Target, to_dict
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import CalibrationError
 from gaide_core.transforms import invert, is_rigid, make_transform
 from gaide_core.types import Array
@@ -109,7 +110,7 @@ def _vec_pose(v: Array) -> Array:
 
 
 def _residuals(
-    params: Array, cam: Camera, T_flange_base: Array, dets: Sequence[Detection]
+    params: Array, cam: Intrinsics, T_flange_base: Array, dets: Sequence[Detection]
 ) -> Array:
     """Pixel residuals (2 per point, all frames) for params = [X (6), Y (6)] as rotvec + t."""
     X, Y = _vec_pose(params[:6]), _vec_pose(params[6:])
@@ -142,7 +143,7 @@ def _flange_target(X: Array, T_flange_base: Array, T_cam_target: Sequence[Array]
 
 
 def _refine(
-    X0: Array, Y0: Array, cam: Camera, T_flange_base: Array, dets: Sequence[Detection]
+    X0: Array, Y0: Array, cam: Intrinsics, T_flange_base: Array, dets: Sequence[Detection]
 ) -> tuple[Array, Array, Array]:
     """Least-squares X, Y (robust soft-L1 loss, 1 px scale) and the final residuals."""
     sol = least_squares(

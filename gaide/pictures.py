@@ -16,10 +16,10 @@ import trimesh
 from gaide.synthetic.camera import look_at
 from gaide.synthetic.raycast import RaycastScene
 from gaide_core.atomic import write_file_atomic
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import ExecutionError
 from gaide_core.types import Array
 from perception.depth import project
-from perception.frames import Intrinsics
 
 RGB = tuple[float, float, float]
 

@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from gaide_core.camera import Intrinsics
 from gaide_core.transforms import to_xyz_quat
 from gaide_core.types import Array
 from perception.bag_layout import CAMERA_INFO, IMAGE, TF_MESSAGE, TRANSFORM
-from perception.frames import Intrinsics
 
 STREAM_INFO = "realsense_msgs/msg/StreamInfo"
 UINT32 = "std_msgs/msg/UInt32"

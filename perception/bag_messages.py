@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import BagError
 from gaide_core.transforms import from_xyz_quat
 from gaide_core.types import Array
-from perception.frames import Intrinsics
 
 DEPTH_ENCODINGS = ("16UC1", "mono16")
 # color encoding -> (channels per pixel, channel indices giving R, G, B)
@@ -117,12 +117,9 @@ def decode_camera_info(
                 f"{topic}: camera_info is {width}x{height} but the images are "
                 f"{image_size[0]}x{image_size[1]}; they must match"
             )
-    try:
-        return Intrinsics(
-            width=width, height=height, K=K, distortion_model=str(msg.distortion_model), D=D
-        )
-    except BagError as err:
-        raise BagError(f"{topic}: {err}") from err
+    return Intrinsics.checked(
+        width, height, K, D, str(msg.distortion_model), error=BagError, where=topic
+    )
 
 
 def decode_transform(msg: Any, topic: str) -> Array:

@@ -16,12 +16,13 @@ import numpy as np
 import numpy.typing as npt
 import open3d as o3d
 
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import PerceptionError
 from gaide_core.native_output import quiet_native_output
 from gaide_core.transforms import apply, is_rigid
 from gaide_core.types import Array
 from perception.depth import deprojector_for, fuse_depth, project
-from perception.frames import Frames, Intrinsics
+from perception.frames import Frames
 
 log = logging.getLogger(__name__)
 

@@ -11,9 +11,9 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import PerceptionError
 from gaide_core.types import Array
-from perception.frames import Intrinsics
 
 
 def fuse_depth(images: Sequence[np.ndarray], depth_units: float) -> Array:

@@ -9,12 +9,13 @@ multiplied by ``depth_units`` (m per unit).
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import BagError
 from gaide_core.types import Array
 
@@ -24,39 +25,6 @@ class BagLayout(enum.Enum):
 
     SDK = "sdk"  # RealSense SDK / viewer: /device_0/sensor_*/...
     ROS_WRAPPER = "realsense-ros"  # realsense-ros: /camera/color/image_raw, ...
-
-
-@dataclass(frozen=True)
-class Intrinsics:
-    """Pinhole intrinsics of one stream (pixels)."""
-
-    width: int
-    height: int
-    K: Array  # (3, 3)
-    distortion_model: str = "plumb_bob"  # ROS name; RealSense reports e.g. "plumb_bob"
-    D: Array = field(default_factory=lambda: np.zeros(5))  # distortion coefficients
-
-    def __post_init__(self) -> None:
-        if self.width <= 0 or self.height <= 0:
-            raise BagError(f"image size must be positive, got {self.width}x{self.height}")
-        if self.K.shape != (3, 3) or not np.all(np.isfinite(self.K)) or self.K[0, 0] <= 0:
-            raise BagError(f"camera matrix K must be a finite 3x3 with fx > 0, got {self.K}")
-
-    @property
-    def fx(self) -> float:
-        return float(self.K[0, 0])
-
-    @property
-    def fy(self) -> float:
-        return float(self.K[1, 1])
-
-    @property
-    def cx(self) -> float:
-        return float(self.K[0, 2])
-
-    @property
-    def cy(self) -> float:
-        return float(self.K[1, 2])
 
 
 @dataclass(frozen=True)

@@ -7,10 +7,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import ConfigError
 from gaide_core.transforms import make_transform
 from gaide_core.types import Array
-from perception.frames import Intrinsics
 
 
 def look_at(eye: npt.ArrayLike, target: npt.ArrayLike) -> Array:

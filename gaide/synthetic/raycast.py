@@ -14,8 +14,8 @@ import numpy.typing as npt
 import open3d as o3d
 import trimesh
 
+from gaide_core.camera import Intrinsics
 from gaide_core.types import Array
-from perception.frames import Intrinsics
 
 _LIGHT = np.array([0.3, -0.4, 0.85]) / np.linalg.norm([0.3, -0.4, 0.85])
 

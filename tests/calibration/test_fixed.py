@@ -89,7 +89,7 @@ def test_bad_inputs() -> None:
         calibrate_fixed([], K, None, TAG, T_BASE_TAG)
     with pytest.raises(CalibrationError, match="differ in size"):
         calibrate_fixed([img, img[:40]], K, None, TAG, T_BASE_TAG)
-    with pytest.raises(CalibrationError, match="3x3 camera matrix"):
+    with pytest.raises(CalibrationError, match="camera matrix K must be a finite 3x3"):
         calibrate_fixed([img], np.eye(4), None, TAG, T_BASE_TAG)
     with pytest.raises(CalibrationError, match="rigid"):
         calibrate_fixed([img], K, None, TAG, 2 * np.eye(4))

@@ -8,9 +8,11 @@ from typing import Any
 
 import numpy as np
 
+from gaide_core.camera import Intrinsics
 from gaide_core.transforms import from_xyz_rpy
+from gaide_core.types import Array
 from perception.bag_builder import MessageBuilder, serialize
-from perception.frames import Array, BagLayout, Frames, ImageStream, Intrinsics, JointStates
+from perception.frames import BagLayout, Frames, ImageStream, JointStates
 
 WIDTH, HEIGHT = 64, 48
 T0_NS = 1_700_000_000_123_456_789  # a realistic wall-clock stamp (ns)

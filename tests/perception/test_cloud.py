@@ -7,11 +7,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import PerceptionError
 from gaide_core.transforms import from_xyz_rpy
 from perception.cloud import CloudCfg, load_ply, remove_inside_spheres, save_ply, scene_cloud
 from perception.depth import Deprojector, fuse_depth, project
-from perception.frames import BagLayout, Frames, ImageStream, Intrinsics
+from perception.frames import BagLayout, Frames, ImageStream
 
 
 def _intrinsics(fx: float, cx: float, cy: float, w: int = 64, h: int = 48) -> Intrinsics:

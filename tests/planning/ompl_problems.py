@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from gaide_core.transforms import from_xyz_rpy
+from gaide_core.types import Array
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
-from planning.planner import Array
 from planning.primitives import Box, Primitive, PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
