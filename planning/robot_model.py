@@ -8,6 +8,7 @@ T_base_frame`` with ``T_world_base`` from the robot config (identity by default,
 from __future__ import annotations
 
 import logging
+import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from functools import cached_property
@@ -18,7 +19,7 @@ import numpy.typing as npt
 import pinocchio as pin
 import trimesh
 
-from gaide_core.errors import RobotModelError
+from gaide_core.errors import ConfigError, RobotModelError
 from gaide_core.types import Array
 from planning.robot_config import RobotConfig, load_robot_config
 
@@ -206,6 +207,30 @@ class RobotModel:
     def sample_uniform(self, rng: np.random.Generator, n: int) -> Array:
         """(n, dof) configurations uniform within the joint limits."""
         return rng.uniform(self.lower, self.upper, size=(n, self.dof))
+
+    def configuration_from_text(self, text: str, what: str = "configuration") -> Array:
+        """The joint vector ``text`` names: a named configuration of the robot config, or
+        dof comma-separated angles (rad). ConfigError naming the forms, or the joints when
+        the count is wrong (the text is the user's setting; limits are not checked here)."""
+        spec = text.strip()
+        named = self.config.named_configurations
+        if spec in named:
+            return self.named_configuration(spec)
+        try:
+            values = [float(v) for v in spec.split(",") if v.strip()]
+        except ValueError:
+            values = []
+        if not values or not all(math.isfinite(v) for v in values):
+            raise ConfigError(
+                f"{what} '{text}': give {self.dof} comma-separated angles (rad) or one of the "
+                f"named configurations {sorted(named) or '(none)'}"
+            )
+        if len(values) != self.dof:
+            raise ConfigError(
+                f"{what} '{text}' has {len(values)} values; the robot has {self.dof} joints "
+                f"{list(self.joint_names)} (rad)"
+            )
+        return np.array(values)
 
     def named_configuration(self, name: str) -> Array:
         named = self.config.named_configurations

@@ -15,7 +15,7 @@ from gaide.common import add_checker_option, print_table, robot_and_spheres, wri
 from gaide.scene_spec import HELP as SCENE_HELP
 from gaide.scene_spec import Scene, load_scene
 from gaide_core.errors import ConfigError, ExecutionError, TimingError
-from gaide_core.text_io import load_json
+from gaide_core.plan_file import PlanFile, read_plan
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -93,21 +93,10 @@ def _floats(text: str | None, what: str) -> tuple[float, ...] | None:
         raise ConfigError(f"--{what}: give comma-separated numbers, got '{text}'") from err
 
 
-def read_path_file(path: str | Path) -> dict[str, Any]:
-    """The path JSON ``gaide plan`` writes (TimingError naming what is missing)."""
-    source = Path(path)
-    raw = load_json(source, "path file", TimingError)
-    if not isinstance(raw, dict) or "path" not in raw:
-        raise TimingError(
-            f"path file {source} needs a 'path' list of waypoints (as `gaide plan` writes)"
-        )
-    return raw
-
-
 def _scene_for(
-    args: argparse.Namespace, raw: dict[str, Any], source: str, robot: Any, spheres: Any
+    args: argparse.Namespace, plan: PlanFile, source: str, robot: Any, spheres: Any
 ) -> Scene:
-    spec = args.scene or raw.get("scene")
+    spec = args.scene or plan.scene
     if not spec:
         raise TimingError(
             f"{source} names no scene (key 'scene'); give --scene ({SCENE_HELP}) so that "
@@ -126,11 +115,11 @@ def cmd_time(args: argparse.Namespace) -> int:
 
     check_trajectory_outputs(args.output)
     robot, spheres = robot_and_spheres(args.robot)
-    raw = read_path_file(args.path)
-    names = raw.get("joint_names")
-    if names is not None and tuple(names) != tuple(robot.joint_names):
+    plan = read_plan(args.path)
+    names = plan.joint_names
+    if names is not None and names != tuple(robot.joint_names):
         raise TimingError(
-            f"{args.path}: joint_names {names} are not the robot's {list(robot.joint_names)}; "
+            f"{args.path}: joint_names {list(names)} are not the robot's {list(robot.joint_names)}; "
             "give the robot config the path was planned for (--robot)"
         )
     cfg = TimingCfg(
@@ -144,9 +133,9 @@ def cmd_time(args: argparse.Namespace) -> int:
         max_jerk=_floats(args.max_jerk, "max-jerk"),
         shortcut=not args.no_shortcut,
     )
-    scene = _scene_for(args, raw, args.path, robot, spheres)
+    scene = _scene_for(args, plan, args.path, robot, spheres)
     checker = make_checker(robot, spheres, scene.world, backend=args.checker)
-    traj = RuckigParameterizer(cfg).parameterize(raw["path"], checker)
+    traj = RuckigParameterizer(cfg).parameterize(plan.path, checker)
     violations = limit_violations(traj)
     if violations:  # Ruckig keeps the limits by construction; this would be a bug
         raise TimingError(f"the trajectory breaks a limit at {violations} samples (1 kHz)")

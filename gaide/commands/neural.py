@@ -4,7 +4,6 @@ training, and planning one problem with any planner."""
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -13,8 +12,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from gaide.common import add_checker_option, print_table, robot_and_spheres, seed, write_json
-from gaide_core.errors import ConfigError, PlanningError
+from gaide.common import add_checker_option, print_table, robot_and_spheres, seed
+from gaide_core.errors import ConfigError, ExecutionError, PlanningError
+from gaide_core.plan_file import PlanFile, write_plan
 from planning.families import FAMILIES, generate_problem, parse_families, split_seed
 
 
@@ -238,16 +238,7 @@ def _configuration(text: str | None, robot: Any, what: str) -> np.ndarray:
         raise ConfigError(
             f"--{what} is needed with --scene (comma-separated rad or a named configuration)"
         )
-    if text in robot.config.named_configurations:
-        return robot.named_configuration(text)
-    try:
-        q = np.array([float(v) for v in text.split(",")])
-    except ValueError as err:
-        raise ConfigError(
-            f"--{what} '{text}': give {robot.dof} comma-separated angles (rad) or one of "
-            f"{sorted(robot.config.named_configurations)}"
-        ) from err
-    return robot.as_configuration(q, what)
+    return robot.configuration_from_text(text, what)
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
@@ -277,18 +268,21 @@ def cmd_plan(args: argparse.Namespace) -> int:
     result = planner.plan(checker, start, goal, budget_s=args.budget, rng=rng)
     if result.path is None:
         raise PlanningError(f"{args.planner} on {source}: {result.status.value}: {result.detail}")
-    write_json(
+    write_plan(
         args.output,
-        {
-            "planner": result.planner,
-            "status": result.status.value,
-            "scene": source,
-            "joint_names": [str(n) for n in robot.model.names[1:]],
-            "time_s": result.time_s,
-            "cost_rad": result.cost,
-            "path": result.path.tolist(),
-            "stats": json.loads(json.dumps(result.stats, default=str)),
-        },
+        PlanFile(
+            planner=result.planner,
+            status=result.status.value,
+            scene=source,
+            joint_names=robot.joint_names,
+            time_s=result.time_s,
+            cost_rad=result.cost,
+            start=start,
+            goal=goal,
+            path=result.path,
+            stats=result.stats,
+        ),
+        ExecutionError,
     )
     print(
         f"{result.planner}: {len(result.path)} waypoints, {result.cost:.3f} rad in "

@@ -68,20 +68,7 @@ def parse_configuration(text: str | None, robot) -> np.ndarray:  # type: ignore[
             if "home" in robot.config.named_configurations
             else (robot.lower + robot.upper) / 2
         )
-    if text in robot.config.named_configurations:
-        return robot.named_configuration(text)
-    try:
-        values = [float(v) for v in text.replace(" ", "").split(",") if v]
-    except ValueError:
-        values = None
-    if values is None:
-        names = sorted(robot.config.named_configurations)
-        from gaide_core.errors import RobotModelError
-
-        raise RobotModelError(
-            f"'{text}' is neither comma-separated joint values nor a named configuration {names}"
-        )
-    return robot.check_configuration(values, what="configuration")
+    return robot.check_configuration(robot.configuration_from_text(text, "--q"), what="--q")
 
 
 def cmd_show(args: argparse.Namespace) -> int:

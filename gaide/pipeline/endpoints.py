@@ -102,13 +102,8 @@ def parse_endpoint(text: str, robot: RobotModel, what: str) -> Endpoint:
             f"{what} '{spec}' is not a named configuration of the robot "
             f"{sorted(named) or '(none)'}; give {FORMS}"
         )
-    v = _numbers(spec, what)
-    if len(v) != robot.dof:
-        raise ConfigError(
-            f"{what} '{spec}' has {len(v)} values; the robot has {robot.dof} joints "
-            f"{list(robot.joint_names)} (rad)"
-        )
-    return Endpoint(what, spec, EndpointKind.JOINTS, joints=np.asarray(v))
+    q = robot.configuration_from_text(spec, what)
+    return Endpoint(what, spec, EndpointKind.JOINTS, joints=q)
 
 
 def reference_configuration(robot: RobotModel, recorded: Array | None) -> Array:

@@ -17,6 +17,7 @@ from gaide.pipeline.endpoints import Resolved, reference_configuration, resolve
 from gaide.pipeline.runner import StageRecord, StageRunner
 from gaide.pipeline.sense import CameraPose, Sensed, Setup
 from gaide_core.errors import PlanningError, TimingError
+from gaide_core.plan_file import PlanFile, plan_bytes
 from gaide_core.types import Array
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
@@ -120,22 +121,19 @@ def planning_stage(
         poses=cfg.report.poses,
         title=f"{setup.planner}: {len(res.path)} waypoints, {res.cost:.2f} rad",
     )
-    plan = {
-        "planner": res.planner,
-        "status": res.status.value,
-        "scene": str(runner.path("scene.ply")),
-        "joint_names": list(setup.robot.joint_names),
-        "time_s": res.time_s,
-        "cost_rad": res.cost,
-        "start": start.q.tolist(),
-        "goal": goal.q.tolist(),
-        "path": res.path.tolist(),
-        "stats": json.loads(json.dumps(res.stats, default=str)),
-    }
-    runner.commit(
-        record,
-        {"plan.json": (json.dumps(plan, indent=2) + "\n").encode(), "path.png": picture},
+    plan = PlanFile(
+        planner=res.planner,
+        status=res.status.value,
+        scene=str(runner.path("scene.ply")),
+        joint_names=setup.robot.joint_names,
+        time_s=res.time_s,
+        cost_rad=res.cost,
+        start=start.q,
+        goal=goal.q,
+        path=res.path,
+        stats=res.stats,
     )
+    runner.commit(record, {"plan.json": plan_bytes(plan), "path.png": picture})
     record.figures.update(
         start=f"{start.endpoint.text} ({start.how})",
         goal=f"{goal.endpoint.text} ({goal.how})",

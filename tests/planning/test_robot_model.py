@@ -59,6 +59,18 @@ def test_bad_configurations_name_the_joint(robot: RobotModel, q: list[float], me
     assert message in str(err.value)
 
 
+def test_a_configuration_from_text_is_named_or_angles(robot: RobotModel) -> None:
+    home = robot.named_configuration("home")
+    np.testing.assert_array_equal(robot.configuration_from_text(" home "), home)
+    text = ", ".join(f"{v:.17g}" for v in home)
+    np.testing.assert_array_equal(robot.configuration_from_text(text), home)
+    for bad in ("hom", "1,2,x", "nan,0,0,0,0,0", ""):
+        with pytest.raises(ConfigError, match="6 comma-separated angles .*'home'"):
+            robot.configuration_from_text(bad, "--goal")
+    with pytest.raises(ConfigError, match="--goal '1,2' has 2 values; the robot has 6 joints"):
+        robot.configuration_from_text("1,2", "--goal")
+
+
 def test_unknown_frame_lists_valid_names(robot: RobotModel) -> None:
     with pytest.raises(RobotModelError, match=r"valid frames: .*tool0"):
         robot.frame_pose(np.zeros(6), "gripper")
