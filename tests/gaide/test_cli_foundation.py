@@ -29,7 +29,7 @@ def test_bad_input_prints_one_line_and_exits_with_the_stage_code(tmp_path: Path)
     proc = run_cli("robot", "show", "--q", "1,2", "-o", str(tmp_path / "x.png"))
     assert proc.returncode == 6
     assert proc.stderr.strip().count("\n") == 0
-    assert "expected (6,)" in proc.stderr
+    assert "has 2 values; the robot has 6 joints" in proc.stderr
     assert not (tmp_path / "x.png").exists()
     cfg = tmp_path / "robot.yaml"
     cfg.write_text(f"urdf: {tmp_path / 'missing.urdf'}\n")

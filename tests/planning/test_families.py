@@ -87,7 +87,7 @@ def test_problem_file_round_trip(robot: RobotModel, spheres: SphereModel, tmp_pa
             "problems: [{start: [0,0,0,0,0,0], goal: [0,0,0,0,0,0], obstacles: [{type: cone}]}]",
             "unknown type 'cone'",
         ),
-        ("problems: {", "does not parse"),
+        ("problems: {", "is not valid YAML: line 2, column 1"),
     ],
 )
 def test_bad_problem_files(tmp_path: Path, text: str, message: str) -> None:
