@@ -6,14 +6,16 @@ Depends on ``core`` and ``planning`` only (robot model, collision checker, world
 
 - timing: ``timing_cfg`` (TimingCfg, TimingMode), ``limits`` (JointLimits),
   ``parameterizer`` (the TimeParameterizer protocol), ``ruckig_timing``
-  (RuckigParameterizer, time_parameterize), with ``path_input`` (checks), ``string_pull``
-  and ``corner_cut`` (shortcuts), ``blend`` (waypoint velocities), ``ruckig_segments``
+  (RuckigParameterizer, time_parameterize), with ``path_input`` (checks), planning's
+  ``path_ops`` (string pulling, corner cuts), ``blend`` (waypoint velocities), ``ruckig_segments``
   (moves and their exact states), ``recheck`` (collision re-check of blends);
 - results and checks: ``trajectory`` (TimedTrajectory), ``verify`` (limits at 1 kHz,
   distance from the path, swept collisions);
 - files: ``trajectory_io`` (CSV, JSON), ``ros_bags`` (JointTrajectory and JointState bags),
-  ``joint_log`` (JointLog, log CSV), ``export`` (by suffix, all or nothing), ``staging``;
-- execution: ``sim_world`` and ``simulate`` (PyBullet), ``compare`` (plan vs log), ``plots``;
+  ``joint_log`` (log CSV of a ``gaide_core.joints.JointStates`` series), ``export`` (by
+  suffix, all or nothing, with ``gaide_core.atomic``);
+- execution: ``sim_cfg`` (SimCfg), ``sim_world`` and ``simulate`` (PyBullet), ``compare``
+  (plan vs log), ``plots``;
 - ``bench_timing``: ``gaide bench timing``.
 """
 
@@ -21,7 +23,6 @@ __all__ = [
     "bench_timing",
     "blend",
     "compare",
-    "corner_cut",
     "export",
     "joint_log",
     "limits",
@@ -32,10 +33,9 @@ __all__ = [
     "ros_bags",
     "ruckig_segments",
     "ruckig_timing",
+    "sim_cfg",
     "sim_world",
     "simulate",
-    "staging",
-    "string_pull",
     "timing_cfg",
     "trajectory",
     "trajectory_io",

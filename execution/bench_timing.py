@@ -41,7 +41,8 @@ from execution.timing_cfg import TimingCfg, TimingMode
 from execution.verify import limit_violations, path_deviation, swept_collisions
 from gaide_core.errors import PlanningError
 from planning.checker import make_checker
-from planning.families import FAMILIES, generate_problem, split_seed
+from planning.families import generate_problem
+from planning.family_names import FAMILIES, split_seed
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 

@@ -1,6 +1,7 @@
 """Comparing a planned trajectory with a controller log (real robot or simulator).
 
-1. Joints are matched by name (the log may hold more joints; a missing one is an error).
+1. Joints are matched by name (the log may hold more joints; a missing one is an error), and
+   the log needs at least two samples.
 2. Time alignment: the log is resampled at the plan's rate, joint velocities are taken from
    its positions (central differences), and the plan's velocities are cross-correlated with
    them, summed over joints. The best lag, refined to a fraction of a sample by a parabola
@@ -24,9 +25,10 @@ from typing import Any
 import numpy as np
 from scipy.signal import correlate
 
-from execution.joint_log import JointLog
+from execution.joint_log import check_log
 from execution.trajectory import TimedTrajectory
-from gaide_core.errors import ExecutionError
+from gaide_core.errors import ExecutionError, GaideError
+from gaide_core.joints import JointStates
 from gaide_core.types import Array
 
 
@@ -80,7 +82,7 @@ class CompareResult:
         }
 
 
-def _resample(log: JointLog, dt: float) -> tuple[Array, Array]:
+def _resample(log: JointStates, dt: float) -> tuple[Array, Array]:
     """The log's positions on a uniform grid (s, from its first sample) and velocities."""
     grid = np.arange(0.0, log.t[-1] - log.t[0] + 1e-12, dt)
     t = log.t - log.t[0]
@@ -88,10 +90,16 @@ def _resample(log: JointLog, dt: float) -> tuple[Array, Array]:
     return grid, np.gradient(q, dt, axis=0)
 
 
-def compare(plan: TimedTrajectory, log: JointLog, cfg: CompareCfg | None = None) -> CompareResult:
+def compare(
+    plan: TimedTrajectory, log: JointStates, cfg: CompareCfg | None = None
+) -> CompareResult:
     """Align ``log`` with ``plan`` and measure the tracking error (see the module doc)."""
     cfg = cfg or CompareCfg()
-    log = log.select(tuple(plan.joint_names))
+    check_log(log)
+    try:
+        log = log.select(tuple(plan.joint_names))
+    except GaideError as mismatch:  # the series' own error class (a bag's: BagError)
+        raise ExecutionError(f"the log does not fit the trajectory: {mismatch}") from mismatch
     dt = 1.0 / plan.rate_hz
     grid, v_log = _resample(log, dt)
     v_plan = plan.qd

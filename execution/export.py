@@ -6,8 +6,8 @@ suffix-less path (a ROS2 bag folder, ``storage`` sqlite3 or mcap) holding one
 (:mod:`execution.joint_log`), ``.bag`` or a ROS2 folder of ``sensor_msgs/JointState``.
 
 Every output is written to a temporary sibling first and all are renamed into place only
-when all were written: on any error nothing is left half-written, and no output of the call
-is created.
+when all were written (:func:`gaide_core.atomic.write_files_atomic`): on any error nothing is
+left half-written, and no output of the call is created.
 """
 
 from __future__ import annotations
@@ -15,12 +15,13 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
-from execution.joint_log import JointLog, log_csv
+from execution.joint_log import log_csv
 from execution.ros_bags import ros_version_of, write_joint_state_bag, write_trajectory_bag
-from execution.staging import staged_outputs
 from execution.trajectory import TimedTrajectory
 from execution.trajectory_io import trajectory_csv, trajectory_json
+from gaide_core.atomic import Content, write_files_atomic
 from gaide_core.errors import ExecutionError
+from gaide_core.joints import JointStates
 
 TRAJECTORY_FORMATS = ".csv, .json, .bag (ROS1) or a folder name without a suffix (ROS2)"
 LOG_FORMATS = ".csv, .bag (ROS1) or a folder name without a suffix (ROS2)"
@@ -57,19 +58,19 @@ def write_trajectory(
     """Write ``traj`` to every path, each in the format its suffix names, and the ``extra``
     files (path -> bytes: a plot, a report) in the same all-or-nothing step."""
 
-    def write(target: Path, tmp: Path) -> None:
+    def content(target: Path) -> Content:
         if target.suffix == ".csv":
-            tmp.write_text(trajectory_csv(traj))
-        elif target.suffix == ".json":
-            tmp.write_text(trajectory_json(traj))
-        else:
-            write_trajectory_bag(traj, tmp, ros_version=ros_version_of(target), storage=storage)
+            return trajectory_csv(traj).encode()
+        if target.suffix == ".json":
+            return trajectory_json(traj).encode()
+        version = ros_version_of(target)
+        return lambda tmp: write_trajectory_bag(traj, tmp, ros_version=version, storage=storage)
 
-    return _write_all(check_trajectory_outputs(paths), extra, write)
+    return _write_all(check_trajectory_outputs(paths), extra, content)
 
 
 def write_log(
-    joint_log: JointLog,
+    joint_log: JointStates,
     paths: Sequence[str | Path],
     *,
     storage: str = "sqlite3",
@@ -78,34 +79,31 @@ def write_log(
     """Write ``joint_log`` to every path, each in the format its suffix names, and the
     ``extra`` files (path -> bytes) in the same all-or-nothing step."""
 
-    def write(target: Path, tmp: Path) -> None:
+    def content(target: Path) -> Content:
         if target.suffix == ".csv":
-            tmp.write_text(log_csv(joint_log))
-        else:
-            write_joint_state_bag(
-                joint_log, tmp, ros_version=ros_version_of(target), storage=storage
-            )
+            return log_csv(joint_log).encode()
+        version = ros_version_of(target)
+        return lambda tmp: write_joint_state_bag(
+            joint_log, tmp, ros_version=version, storage=storage
+        )
 
-    return _write_all(check_log_outputs(paths), extra, write)
+    return _write_all(check_log_outputs(paths), extra, content)
 
 
 def _write_all(
     targets: list[Path],
     extra: Mapping[Path, bytes] | None,
-    write: Callable[[Path, Path], None],
+    content: Callable[[Path], Content],
 ) -> list[Path]:
-    """``write(target, staged_file)`` for every target and the ``extra`` bytes, staged and
-    renamed into place together."""
-    extra = dict(extra or {})
-    with staged_outputs([*targets, *extra], ExecutionError) as staged:
-        for tmp, data in zip(staged[len(targets) :], extra.values(), strict=True):
-            tmp.write_bytes(data)
-        for target, tmp in zip(targets, staged[: len(targets)], strict=True):
-            write(target, tmp)
+    """Every target's ``content(target)`` and the ``extra`` bytes, written together."""
+    write_files_atomic(
+        [*((target, content(target)) for target in targets), *(extra or {}).items()],
+        ExecutionError,
+    )
     return targets
 
 
-def read_log(path: str | Path, topic: str | None = None) -> JointLog:
+def read_log(path: str | Path, topic: str | None = None) -> JointStates:
     """A joint log from a CSV file (this project's or ``rostopic echo -p``'s) or a bag."""
     from execution.joint_log import read_log_csv
     from execution.ros_bags import read_joint_state_bag

@@ -1,4 +1,5 @@
-"""A controller's joint-state log: what the robot (or the simulator) actually did.
+"""A controller's joint-state log: what the robot (or the simulator) actually did, as a
+:class:`~gaide_core.joints.JointStates` series (``error=ExecutionError``).
 
 CSV layout (the simulator writes it; :func:`read_log_csv` reads it)::
 
@@ -8,64 +9,38 @@ CSV layout (the simulator writes it; :func:`read_log_csv` reads it)::
 positions in rad, velocities in rad/s (optional when reading). :func:`read_log_csv` also
 reads the CSV that ``rostopic echo -p /joint_states > log.csv`` writes (``%time`` in ns,
 ``field.header.stamp``, ``field.name0..``, ``field.position0..``, ``field.velocity0..``).
+
+A log to compare with a plan needs at least two samples (:func:`check_log`); the readers
+check that.
 """
 
 from __future__ import annotations
 
 import io
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from execution.trajectory_io import read_csv_table
 from gaide_core.errors import ExecutionError
+from gaide_core.joints import JointStates
 from gaide_core.types import Array
 
+MIN_SAMPLES = 2  # a log spans time: a comparison needs at least two samples
 
-@dataclass(frozen=True, kw_only=True)
-class JointLog:
-    """Joint states over time, sorted by time."""
 
-    names: tuple[str, ...]
-    t: Array  # (N,) s, increasing, relative to ``start_ns``
-    q: Array  # (N, dof) rad
-    qd: Array | None = None  # (N, dof) rad/s
-    start_ns: int = 0  # absolute time (ns, e.g. ROS time) of t = 0
-
-    def __post_init__(self) -> None:
-        n, dof = len(self.t), len(self.names)
-        if n < 2 or dof < 1:
-            raise ExecutionError(f"a joint log needs >= 2 samples and joints, got {n} x {dof}")
-        if len(set(self.names)) != dof:
-            raise ExecutionError(f"joint names repeat in the log: {list(self.names)}")
-        for what, arr in (("q", self.q), ("qd", self.qd)):
-            if arr is not None and arr.shape != (n, dof):
-                raise ExecutionError(f"log {what} has shape {arr.shape}; expected ({n}, {dof})")
-        if np.any(np.diff(self.t) <= 0):
-            raise ExecutionError("log times must increase strictly (sorted, no repeats)")
-
-    def select(self, names: tuple[str, ...]) -> JointLog:
-        """The log with its joints reordered as ``names`` (ExecutionError naming the joints
-        missing from the log and the log's extra ones)."""
-        missing = [n for n in names if n not in self.names]
-        if missing:
-            extra = [n for n in self.names if n not in names]
-            raise ExecutionError(
-                f"the log lacks joints {missing} of the trajectory "
-                f"(the log's joints not in the trajectory: {extra})"
-            )
-        idx = [self.names.index(n) for n in names]
-        return JointLog(
-            names=names,
-            t=self.t,
-            q=self.q[:, idx],
-            qd=None if self.qd is None else self.qd[:, idx],
-            start_ns=self.start_ns,
+def check_log(log: JointStates, what: str = "the joint log") -> JointStates:
+    """``log`` when it has at least :data:`MIN_SAMPLES` samples; ExecutionError naming
+    ``what`` (the file) else."""
+    n = len(log.t)
+    if n < MIN_SAMPLES:
+        raise ExecutionError(
+            f"{what}: a joint log needs >= {MIN_SAMPLES} samples to compare, got {n}"
         )
+    return log
 
 
-def log_csv(log: JointLog) -> str:
+def log_csv(log: JointStates) -> str:
     """The CSV text of ``log`` (see the module doc)."""
     header = ["t", *(f"{n}_pos" for n in log.names)]
     blocks = [log.t[:, None], log.q]
@@ -78,7 +53,7 @@ def log_csv(log: JointLog) -> str:
     return out.getvalue()
 
 
-def read_log_csv(path: str | Path) -> JointLog:
+def read_log_csv(path: str | Path) -> JointStates:
     """A joint log from this module's CSV or from ``rostopic echo -p`` output."""
     source = Path(path)
     if not source.is_file():
@@ -101,7 +76,7 @@ def read_log_csv(path: str | Path) -> JointLog:
     return _sorted(source, names, data[:, 0], q, qd, 0)
 
 
-def _read_rostopic_csv(source: Path) -> JointLog:
+def _read_rostopic_csv(source: Path) -> JointStates:
     import csv
 
     with source.open(newline="") as f:
@@ -145,18 +120,20 @@ def _read_rostopic_csv(source: Path) -> JointLog:
 
 def _sorted(
     source: Path, names: tuple[str, ...], t: Array, q: Array, qd: Array | None, start_ns: int
-) -> JointLog:
+) -> JointStates:
     order = np.argsort(t, kind="stable")
     t, q = t[order], q[order]
     qd = None if qd is None else qd[order]
     keep = np.r_[True, np.diff(t) > 0]  # drop repeated stamps
     try:
-        return JointLog(
+        log = JointStates(
             names=names,
             t=t[keep],
             q=q[keep],
             qd=None if qd is None else qd[keep],
             start_ns=start_ns,
+            error=ExecutionError,
         )
     except ExecutionError as err:
         raise ExecutionError(f"{source}: {err}") from err
+    return check_log(log, str(source))

@@ -13,9 +13,7 @@ from execution.limits import JointLimits
 from gaide_core.errors import TimingError
 from gaide_core.types import Array
 from planning.collision import CollisionChecker
-
-#: rad; consecutive waypoints closer than this are one waypoint.
-MIN_STEP = 1e-9
+from planning.path_ops import MIN_STEP, first_invalid_sample
 
 
 def as_path(path: npt.ArrayLike, limits: JointLimits) -> Array:
@@ -77,11 +75,7 @@ def check_path_valid(path: Array, checker: CollisionChecker) -> None:
 
 def _edge_diagnosis(q0: Array, q1: Array, checker: CollisionChecker) -> str:
     """The checker's diagnosis at the first invalid sample of the edge q0 -> q1."""
-    steps = int(checker.edge_steps(q0[None], q1[None])[0])
-    frac = np.linspace(0.0, 1.0, steps + 1)
-    samples = q0 + frac[:, None] * (q1 - q0)
-    ok = checker.config_valid(samples)
-    if ok.all():
+    hit = first_invalid_sample(checker, q0, q1)
+    if hit is None:
         return "invalid between samples"
-    i = int(np.flatnonzero(~ok)[0])
-    return f"at {100 * frac[i]:.0f}% of the edge, {checker.diagnose(samples[i])}"
+    return f"at {100 * hit[0]:.0f}% of the edge, {checker.diagnose(hit[1])}"

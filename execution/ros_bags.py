@@ -10,40 +10,44 @@
 Paths: ``NAME.bag`` is a ROS1 bag (one file); any path without a suffix is a ROS2 bag (a
 folder) with ``sqlite3`` (default) or ``mcap`` storage. Reading takes either, and a ``.mcap``
 file. ROS1 bags carry full message definitions, ROS2 bags carry the type definitions in their
-storage, so ROS tools decode them without this project. Writers write to the path given as is;
-callers that need an all-or-nothing write stage the path (``execution.staging``).
+storage, so ROS tools decode them without this project. Messages and the writing are
+:mod:`gaide_core.ros`'s (one bag writer for every package): a bag is written into a temporary
+sibling and renamed into place.
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from rosbags.highlevel import AnyReader, AnyReaderError
-from rosbags.rosbag1 import Writer as Writer1
-from rosbags.rosbag1 import WriterError as Writer1Error
-from rosbags.rosbag2 import StoragePlugin
-from rosbags.rosbag2 import Writer as Writer2
-from rosbags.rosbag2 import WriterError as Writer2Error
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_typestore
 
-from execution.joint_log import JointLog
+from execution.joint_log import check_log
 from execution.trajectory import TimedTrajectory
 from gaide_core.errors import ExecutionError
-from gaide_core.types import Array
+from gaide_core.joints import JointStates
+from gaide_core.ros import (
+    JOINT_STATE,
+    BagMessage,
+    Messages,
+    joint_state_messages,
+    joint_states_from,
+    message_stamp_ns,
+    write_bag,
+)
 
 log = logging.getLogger(__name__)
 
 TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 POINT = "trajectory_msgs/msg/JointTrajectoryPoint"
-JOINT_STATE = "sensor_msgs/msg/JointState"
 TRAJECTORY_TOPIC = "/joint_trajectory"
 JOINT_STATES_TOPIC = "/joint_states"
-STORAGES = ("sqlite3", "mcap")
 
 
 def ros_version_of(path: str | Path) -> int:
@@ -58,64 +62,6 @@ def ros_version_of(path: str | Path) -> int:
     )
 
 
-def _writer_errors() -> tuple[type[BaseException], ...]:
-    return (Writer1Error, Writer2Error, SerdeError, TypesysError, OSError, ValueError, TypeError)
-
-
-class _Messages:
-    """Message objects of one ROS version's typestore."""
-
-    def __init__(self, ros_version: int) -> None:
-        self.ros_version = ros_version
-        self.store = get_typestore(Stores.ROS1_NOETIC if ros_version == 1 else Stores.ROS2_HUMBLE)
-        self._seq = 0
-
-    def new(self, msgtype: str, **fields: Any) -> Any:
-        return self.store.types[msgtype](**fields)
-
-    def header(self, stamp_ns: int, frame_id: str = "") -> Any:
-        stamp = self.new(
-            "builtin_interfaces/msg/Time", sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9
-        )
-        if self.ros_version == 2:
-            return self.new("std_msgs/msg/Header", stamp=stamp, frame_id=frame_id)
-        self._seq += 1
-        return self.new("std_msgs/msg/Header", seq=self._seq - 1, stamp=stamp, frame_id=frame_id)
-
-    def duration(self, seconds: float) -> Any:
-        ns = round(seconds * 1e9)
-        return self.new("builtin_interfaces/msg/Duration", sec=ns // 10**9, nanosec=ns % 10**9)
-
-    def serialize(self, msg: Any, msgtype: str) -> bytes | memoryview:
-        if self.ros_version == 1:
-            return self.store.serialize_ros1(msg, msgtype)
-        return self.store.serialize_cdr(msg, msgtype)
-
-
-def _write(
-    path: Path, topic: str, msgtype: str, stamped: list[tuple[int, Any]], b: _Messages, storage: str
-) -> None:
-    """Write messages (log time ns, message) on one topic into a new bag at ``path``."""
-    if storage not in STORAGES:
-        raise ExecutionError(f"storage must be one of {list(STORAGES)}, got {storage!r}")
-    try:
-        if b.ros_version == 1:
-            with Writer1(path) as w1:
-                conn = w1.add_connection(topic, msgtype, typestore=b.store)
-                for stamp, msg in stamped:
-                    w1.write(conn, stamp, b.serialize(msg, msgtype))
-            return
-        plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-        with Writer2(path, version=Writer2.VERSION_LATEST, storage_plugin=plugin) as w2:
-            conn = w2.add_connection(topic, msgtype, typestore=b.store)
-            for stamp, msg in stamped:
-                w2.write(conn, stamp, b.serialize(msg, msgtype))
-    except _writer_errors() as err:
-        raise ExecutionError(
-            f"{path}: writing the bag failed ({type(err).__name__}: {err})"
-        ) from err
-
-
 def write_trajectory_bag(
     traj: TimedTrajectory,
     path: str | Path,
@@ -128,32 +74,31 @@ def write_trajectory_bag(
     """Write ``traj`` as one JointTrajectory message into a new bag at ``path`` (ROS version
     from the path unless given; ``stamp_ns`` is the header stamp, 0: start on receipt)."""
     target = Path(path)
-    version = ros_version or ros_version_of(target)
-    b = _Messages(version)
+    m = Messages(ros_version or ros_version_of(target))
     points = [
-        b.new(
+        m.new(
             POINT,
             positions=traj.q[i].astype(np.float64),
             velocities=traj.qd[i].astype(np.float64),
             accelerations=traj.qdd[i].astype(np.float64),
             effort=np.zeros(0, np.float64),
-            time_from_start=b.duration(float(traj.t[i])),
+            time_from_start=m.duration(float(traj.t[i])),
         )
         for i in range(len(traj.t))
     ]
-    msg = b.new(
+    msg = m.new(
         TRAJECTORY,
-        header=b.header(stamp_ns),
+        header=m.header(topic, stamp_ns),
         joint_names=list(traj.joint_names),
         points=points,
     )
     log_time = stamp_ns if stamp_ns > 0 else time.time_ns()
-    _write(target, topic, TRAJECTORY, [(log_time, msg)], b, storage)
-    return target
+    message = BagMessage(topic, TRAJECTORY, log_time, msg)
+    return write_bag(target, [message], m, storage=storage, error=ExecutionError)
 
 
 def write_joint_state_bag(
-    joint_log: JointLog,
+    joint_log: JointStates,
     path: str | Path,
     *,
     ros_version: int | None = None,
@@ -162,22 +107,9 @@ def write_joint_state_bag(
 ) -> Path:
     """Write ``joint_log`` as JointState messages (stamps ``start_ns + t``) into a new bag."""
     target = Path(path)
-    b = _Messages(ros_version or ros_version_of(target))
-    empty = np.zeros(0, np.float64)
-    stamped = []
-    for i, t in enumerate(joint_log.t.tolist()):
-        stamp = joint_log.start_ns + round(t * 1e9)
-        msg = b.new(
-            JOINT_STATE,
-            header=b.header(stamp),
-            name=list(joint_log.names),
-            position=joint_log.q[i].astype(np.float64),
-            velocity=empty if joint_log.qd is None else joint_log.qd[i].astype(np.float64),
-            effort=empty,
-        )
-        stamped.append((stamp, msg))
-    _write(target, topic, JOINT_STATE, stamped, b, storage)
-    return target
+    m = Messages(ros_version or ros_version_of(target))
+    messages = joint_state_messages(joint_log, m, topic)
+    return write_bag(target, messages, m, storage=storage, error=ExecutionError)
 
 
 def _open(path: Path) -> Any:
@@ -206,55 +138,33 @@ def _connections(reader: Any, path: Path, msgtype: str, topic: str | None) -> li
     return conns
 
 
-def read_joint_state_bag(path: str | Path, topic: str | None = None) -> JointLog:
+def read_joint_state_bag(path: str | Path, topic: str | None = None) -> JointStates:
     """Joint positions (and velocities when every message has them) of a JointState topic,
-    by header stamp (the log time where a stamp is zero). Joint order: the first message's;
-    messages missing some of its joints are skipped with a warning."""
+    by header stamp (the log time where a stamp is zero): :func:`gaide_core.ros.joint_states_from`.
+    Joint order: the first message's; messages missing some of its joints are skipped with a
+    warning. ExecutionError unless at least two messages are usable."""
     source = Path(path)
     reader = _open(source)
-    rows: list[tuple[int, Array, Array | None]] = []
-    names: tuple[str, ...] | None = None
-    skipped = 0
     try:
-        for conn, log_time, raw in reader.messages(
-            connections=_connections(reader, source, JOINT_STATE, topic)
-        ):
-            msg = reader.deserialize(raw, conn.msgtype)
-            msg_names = [str(n) for n in msg.name]
-            if names is None:
-                names = tuple(msg_names)
-            if not set(names) <= set(msg_names) or len(msg.position) != len(msg_names):
-                skipped += 1
-                continue
-            idx = [msg_names.index(n) for n in names]
-            position = np.asarray(msg.position, float)[idx]
-            velocity = (
-                np.asarray(msg.velocity, float)[idx]
-                if len(msg.velocity) == len(msg_names)
-                else None
-            )
-            stamp = int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec)
-            rows.append((stamp or int(log_time), position, velocity))
+        conns = _connections(reader, source, JOINT_STATE, topic)
+        states, skipped = joint_states_from(_stamped(reader, conns), ExecutionError)
     except (SerdeError, TypesysError, ValueError, KeyError) as err:
         raise ExecutionError(f"{source}: cannot decode JointState messages ({err})") from err
     finally:
         reader.close()
     if skipped:
+        names = None if states is None else states.names
         log.warning("%s: skipped %d JointState messages lacking joints %s", source, skipped, names)
-    if names is None or len(rows) < 2:
-        raise ExecutionError(f"{source}: fewer than 2 usable JointState messages")
-    rows.sort(key=lambda r: r[0])
-    stamps = np.array([r[0] for r in rows], np.int64)
-    keep = np.r_[True, np.diff(stamps) > 0]
-    start = int(stamps[0])
-    has_vel = all(r[2] is not None for r in rows)
-    return JointLog(
-        names=names,
-        t=(stamps[keep] - start).astype(np.float64) * 1e-9,
-        q=np.array([r[1] for r in rows])[keep],
-        qd=np.array([r[2] for r in rows])[keep] if has_vel else None,
-        start_ns=start,
-    )
+    if states is None:
+        raise ExecutionError(f"{source}: no usable JointState messages")
+    return check_log(states, str(source))
+
+
+def _stamped(reader: Any, conns: list[Any]) -> Iterator[tuple[int, Any]]:
+    """(stamp ns, message) of every message on ``conns``, in log order."""
+    for conn, log_time, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        yield message_stamp_ns(msg, int(log_time)), msg
 
 
 def read_trajectory_bag(path: str | Path, topic: str | None = None) -> TimedTrajectory:

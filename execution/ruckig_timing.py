@@ -1,12 +1,13 @@
 """Time parameterization with Ruckig, segment by segment, that keeps the checked path.
 
 Steps: check the path (shape, finite, joint limits, every edge valid), shortcut it
-(:mod:`execution.string_pull`), then time it waypoint to waypoint:
+(:func:`planning.path_ops.pull_string`), then time it waypoint to waypoint:
 
 - ``exact``: every segment is a phase-synchronized Ruckig move from rest to rest, which is
   the straight joint-space line between the waypoints: the trajectory stays on the checked
   path (to Ruckig's rounding, ~1e-12 rad).
-- ``blended``: the corners are first cut with checked chords (:mod:`execution.corner_cut`),
+- ``blended``: the corners are first cut with checked chords
+  (:func:`planning.path_ops.cut_corners`),
   then the inner waypoints get velocities (:mod:`execution.blend`) and each segment is a
   time-synchronized Ruckig move between them, so the robot does not stop. Blends leave the
   straight edges, so every blended segment is re-checked at the controller rate
@@ -32,17 +33,16 @@ import numpy.typing as npt
 import ruckig
 
 from execution.blend import choose_velocities
-from execution.corner_cut import cut_corners
 from execution.limits import JointLimits, limits_for
 from execution.path_input import as_path, check_path_valid
 from execution.recheck import recheck
 from execution.ruckig_segments import SegmentChain, SegmentPlanner
-from execution.string_pull import pull_string
 from execution.timing_cfg import MAX_SAMPLES, TimingCfg, TimingMode
 from execution.trajectory import SegmentInfo, TimedTrajectory, TimingStatus
 from gaide_core.errors import TimingError
 from gaide_core.types import Array
 from planning.collision import CollisionChecker
+from planning.path_ops import cut_corners, pull_string
 
 log = logging.getLogger(__name__)
 

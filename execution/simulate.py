@@ -28,10 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from execution.joint_log import JointLog
+from execution.sim_cfg import SimCfg
 from execution.sim_world import SimWorld
 from execution.trajectory import TimedTrajectory
 from gaide_core.errors import ExecutionError
+from gaide_core.joints import JointStates
 from gaide_core.types import Array
 from planning.collision import CollisionChecker
 from planning.primitives import PrimitiveWorld
@@ -44,26 +45,6 @@ class SimStatus(enum.Enum):
     # Only PyBullet's convex hulls of the link meshes touched the scene; the URDF's own
     # (concave) meshes at the planned configurations clear it.
     HULL_ONLY = "hull_only"
-
-
-@dataclass(frozen=True, kw_only=True)
-class SimCfg:
-    position_gain: float = 1.0  # PyBullet positionGain of the joint motors, in (0, 1]
-    velocity_gain: float = 1.0  # PyBullet velocityGain (feed-forward weight), in [0, 1]
-    settle_s: float = 0.0  # s, extra time holding the last sample (logged too)
-    gravity: bool = True
-    voxel_m: float = 0.02  # m, box size when the scene is a point cloud
-
-    def __post_init__(self) -> None:
-        if not 0 < self.position_gain <= 1 or not 0 <= self.velocity_gain <= 1:
-            raise ExecutionError(
-                "position_gain must be in (0, 1] and velocity_gain in [0, 1], got "
-                f"{self.position_gain}, {self.velocity_gain}"
-            )
-        if not (np.isfinite(self.settle_s) and self.settle_s >= 0):
-            raise ExecutionError(f"settle_s must be >= 0 s, got {self.settle_s}")
-        if not self.voxel_m > 0:
-            raise ExecutionError(f"voxel_m must be > 0 m, got {self.voxel_m}")
 
 
 @dataclass(frozen=True)
@@ -96,7 +77,7 @@ class Contact:
 @dataclass(frozen=True, kw_only=True)
 class SimResult:
     status: SimStatus
-    log: JointLog  # achieved states at every sample (t from the trajectory's start)
+    log: JointStates  # achieved states at every sample (t from the trajectory's start)
     error: Array  # (N, dof) rad, achieved - planned
     rms_rad: Array  # (dof,) RMS tracking error per joint
     max_rad: Array  # (dof,) largest absolute tracking error per joint
@@ -215,7 +196,9 @@ def simulate(
         status = SimStatus.CONTACT
     return SimResult(
         status=status,
-        log=JointLog(names=robot.joint_names, t=times, q=q, qd=qd, start_ns=start_ns),
+        log=JointStates(
+            names=robot.joint_names, t=times, q=q, qd=qd, start_ns=start_ns, error=ExecutionError
+        ),
         error=error,
         rms_rad=np.sqrt(np.mean(error**2, axis=0)),
         max_rad=np.abs(error).max(axis=0),

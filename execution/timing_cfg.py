@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import enum
-import math
 from dataclasses import dataclass
 
+from gaide_core import settings
 from gaide_core.errors import TimingError
 
 # Hz: robot controllers run at 125-1,000 Hz (UR 500, Franka 1,000); a higher rate only makes
@@ -39,7 +39,7 @@ class TimingCfg:
     """Settings of a time parameterization."""
 
     rate_hz: float = 500.0  # Hz, controller rate: the trajectory's sample rate
-    mode: TimingMode = TimingMode.BLENDED
+    mode: TimingMode = TimingMode.BLENDED  # or its name, parsed
     velocity_scale: float = 1.0  # (0, 1], multiplies the velocity limits
     acceleration_scale: float = 1.0  # (0, 1], multiplies the acceleration limits
     jerk_scale: float = 1.0  # (0, 1], multiplies the jerk limits
@@ -52,33 +52,34 @@ class TimingCfg:
     blend_retries: int = 2  # halvings of a colliding blend's speeds before it becomes exact
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.rate_hz) and 1.0 <= self.rate_hz <= MAX_RATE_HZ):
-            raise TimingError(
-                f"rate_hz must be in [1, {MAX_RATE_HZ:g}] Hz (robot controllers run at 125-1000 "
-                f"Hz), got {self.rate_hz}"
-            )
-        if not isinstance(self.mode, TimingMode):
-            raise TimingError(f"mode must be a TimingMode, got {self.mode!r}")
+        def put(name: str, value: object) -> None:
+            object.__setattr__(self, name, value)
+
+        put(
+            "rate_hz",
+            settings.number(
+                self.rate_hz, "rate_hz", lo=1.0, hi=MAX_RATE_HZ, unit="Hz", error=TimingError
+            ),
+        )
+        put("mode", self.mode if isinstance(self.mode, TimingMode) else TimingMode.parse(self.mode))
         for name in ("velocity_scale", "acceleration_scale", "jerk_scale"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and 0.0 < value <= 1.0):
-                raise TimingError(f"{name} must be in (0, 1], got {value}")
+            scale = settings.number(
+                getattr(self, name), name, lo=0.0, hi=1.0, lo_open=True, error=TimingError
+            )
+            put(name, scale)
         for name, unit in (
             ("max_velocity", "rad/s"),
             ("max_acceleration", "rad/s^2"),
             ("max_jerk", "rad/s^3"),
         ):
-            value = getattr(self, name)
-            if value is None:
-                continue
-            object.__setattr__(self, name, tuple(float(v) for v in value))
-            if not all(math.isfinite(v) and v > 0 for v in getattr(self, name)):
-                raise TimingError(f"{name} must be finite values > 0 {unit}, got {list(value)}")
-        if self.blend_levels < 2 or self.blend_sweeps < 1 or self.blend_retries < 0:
-            raise TimingError(
-                "need blend_levels >= 2, blend_sweeps >= 1 and blend_retries >= 0, got "
-                f"{self.blend_levels}, {self.blend_sweeps}, {self.blend_retries}"
+            limits = settings.vector(
+                getattr(self, name), name, positive=True, unit=unit, error=TimingError
             )
+            put(name, limits)
+        settings.flag(self.shortcut, "shortcut", error=TimingError)
+        settings.integer(self.blend_levels, "blend_levels", lo=2, error=TimingError)
+        settings.integer(self.blend_sweeps, "blend_sweeps", lo=1, error=TimingError)
+        settings.integer(self.blend_retries, "blend_retries", lo=0, error=TimingError)
 
     @property
     def dt(self) -> float:

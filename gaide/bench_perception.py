@@ -31,7 +31,8 @@ from gaide.synthetic.scene import fixed_scene, hand_eye_scene
 from gaide_core.errors import PerceptionError
 from gaide_core.transforms import transform_error
 from perception.bag_reader import read_bag
-from perception.cloud import CloudCfg, scene_cloud
+from perception.cloud import scene_cloud
+from perception.cloud_cfg import CloudCfg
 from perception.frames import ImageStream
 from planning.checker import make_checker
 from planning.primitives import PrimitiveWorld

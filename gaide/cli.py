@@ -10,10 +10,17 @@ load is one line too.
 
 from __future__ import annotations
 
+import _thread
 import argparse
+import contextlib
 import logging
+import signal
 import sys
+import threading
+import time
 import traceback
+from collections.abc import Iterator
+from types import FrameType
 from typing import Any, NoReturn
 
 from gaide_core.errors import GaideError
@@ -43,6 +50,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    with _ctrl_c_after_imports():
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     command = "gaide"
     args: Any = None
     try:
@@ -78,6 +90,48 @@ def main(argv: list[str] | None = None) -> int:
             "traceback)",
         )
         return 1
+
+
+@contextlib.contextmanager
+def _ctrl_c_after_imports() -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt, except while a module loads: there it waits for the
+    import to end. The commands import their libraries when they need them, and a C
+    extension interrupted in its initialization fails with an ImportError, which some
+    libraries take for "optional feature missing" and go on: the interrupt would be lost
+    (the run finishing with 0) or turn into an internal error."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = threading.Event()
+
+    def release_after_import() -> None:
+        main_id = threading.main_thread().ident
+        while _importing(sys._current_frames().get(main_id or 0)):
+            time.sleep(0.05)
+        held.clear()
+        _thread.interrupt_main()  # calls the handler again, now outside the import
+
+    def on_sigint(signum: int, frame: FrameType | None) -> None:
+        if not _importing(frame):
+            raise KeyboardInterrupt
+        if not held.is_set():
+            held.set()
+            threading.Thread(target=release_after_import, daemon=True).start()
+
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _importing(frame: FrameType | None) -> bool:
+    """Is ``frame`` (or a caller of it) loading a module?"""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
 
 
 def _say(command: str, text: str) -> None:

@@ -6,14 +6,25 @@ import argparse
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gaide_core.atomic import write_bytes_atomic
 from gaide_core.errors import ExecutionError
 from planning.checker import CHECKERS, DEFAULT_CHECKER
-from planning.robot_setup import robot_and_spheres
+
+if TYPE_CHECKING:
+    from planning.robot_model import RobotModel
+    from planning.sphere_model import SphereModel
 
 __all__ = ["add_checker_option", "print_table", "robot_and_spheres", "seed", "write_json"]
+
+
+def robot_and_spheres(config: str | None) -> tuple[RobotModel, SphereModel]:
+    """The robot of ``config`` (default UR5) and its sphere model (Pinocchio loads here, not
+    when the command line is parsed)."""
+    from planning.robot_setup import robot_and_spheres as load
+
+    return load(config)
 
 
 def seed(text: str) -> int:

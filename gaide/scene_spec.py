@@ -15,15 +15,17 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from gaide_core.errors import ConfigError
 from gaide_core.types import Array
-from planning.distance_field import CloudWorld
-from planning.families import FAMILIES, generate_problem
-from planning.primitives import PrimitiveWorld
-from planning.robot_model import RobotModel
-from planning.sphere_model import SphereModel
-from planning.world import World
+from planning.family_names import FAMILIES
+
+if TYPE_CHECKING:  # the command line imports this module for HELP: keep it light
+    from planning.primitives import PrimitiveWorld
+    from planning.robot_model import RobotModel
+    from planning.sphere_model import SphereModel
+    from planning.world import World
 
 _FAMILY = re.compile(r"^(?:family:)?(?P<family>[a-z_]+)(?::|\s+seed\s+)(?P<seed>\d+)$")
 HELP = (
@@ -47,12 +49,15 @@ def load_scene(spec: str, robot: RobotModel, spheres: SphereModel) -> Scene:
         return Scene(label="none", world=None)
     match = _FAMILY.match(text)
     if match and match["family"] in FAMILIES:
+        from planning.families import generate_problem
+
         problem = generate_problem(match["family"], int(match["seed"]), robot, spheres)
         return Scene(label=text, world=problem.world, primitives=problem.world)
     file_part, _, name = text.partition("#")
     path = Path(file_part)
     if path.suffix == ".ply":
         from perception.cloud import load_ply
+        from planning.distance_field import CloudWorld
 
         points = load_ply(str(path))
         return Scene(label=text, world=CloudWorld(points), cloud=points)

@@ -53,9 +53,10 @@ def apply(T: Array, points: Array) -> Array:
 
 
 def rotation_angle(R: Array) -> float:
-    """Rotation angle (rad) of a 3x3 rotation matrix, robust near 0 and pi."""
-    cos = (np.trace(R) - 1.0) / 2.0
-    return float(np.arccos(np.clip(cos, -1.0, 1.0)))
+    """Rotation angle (rad, in [0, pi]) of a 3x3 rotation matrix, accurate at every angle
+    (scipy's ``Rotation.magnitude``, through the quaternion; the trace formula's arccos
+    loses small angles: it returns 0 for 1e-9 rad)."""
+    return float(Rotation.from_matrix(np.asarray(R, float)).magnitude())
 
 
 def transform_error(T_est: Array, T_true: Array) -> tuple[float, float]:

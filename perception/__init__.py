@@ -14,6 +14,7 @@ __all__ = [
     "bag_tf",
     "bag_writer",
     "cloud",
+    "cloud_cfg",
     "depth",
     "frames",
     "render",

@@ -29,18 +29,6 @@ COLOR_ENCODINGS: dict[str, tuple[int, tuple[int, int, int]]] = {
 }
 
 
-def stamp_to_ns(stamp: Any) -> int:
-    """Integer nanoseconds of a ``builtin_interfaces/Time`` (``sec``, ``nanosec``)."""
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-
-
-def message_stamp_ns(msg: Any, log_time_ns: int) -> int:
-    """Stamp (ns) of a message with a header: ``header.stamp``, or the bag's log time when
-    the header stamp is zero (drivers that leave it unset)."""
-    stamp = stamp_to_ns(msg.header.stamp)
-    return stamp if stamp != 0 else log_time_ns
-
-
 def _field(msg: Any, *names: str) -> Any:
     """The first attribute of ``msg`` among ``names`` (ROS1/ROS2 spellings)."""
     for name in names:
@@ -143,13 +131,3 @@ def decode_float32(value: float) -> float:
     float32 is the value the device reported.
     """
     return float(str(np.float32(value)))
-
-
-def decode_joint_state(msg: Any, names: tuple[str, ...]) -> Array | None:
-    """Positions (len(names),) rad of a JointState in the order ``names``; None if the
-    message lacks one of the joints (e.g. a gripper-only message on the same topic)."""
-    index = {str(n): i for i, n in enumerate(msg.name)}
-    position = np.asarray(msg.position, dtype=np.float64)
-    if len(position) != len(msg.name) or any(n not in index for n in names):
-        return None
-    return position[[index[n] for n in names]]

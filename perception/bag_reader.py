@@ -29,7 +29,8 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from gaide_core.errors import BagError
-from gaide_core.types import Array
+from gaide_core.joints import JointStates
+from gaide_core.ros import joint_states_from
 from perception.bag_damage import BagDamage
 from perception.bag_extrinsics import T_color_depth
 from perception.bag_layout import (
@@ -40,13 +41,9 @@ from perception.bag_layout import (
     detect_layout,
     image_topics,
 )
-from perception.bag_messages import (
-    decode_camera_info,
-    decode_float32,
-    decode_joint_state,
-)
+from perception.bag_messages import decode_camera_info, decode_float32
 from perception.bag_scan import STREAMS, Scan, library_errors, scan
-from perception.frames import BagLayout, Frames, ImageStream, JointStates
+from perception.frames import BagLayout, Frames, ImageStream
 from perception.rosbag1_reader import RecoveringReader
 
 logger = logging.getLogger(__name__)
@@ -225,7 +222,7 @@ def _assemble(
         color=streams["color"],
         depth_units=units,
         T_color_depth=T_color_depth(path, layout, wanted, got, default=default_extrinsics),
-        joint_states=_joint_states(path, layout, got),
+        joint_states=_joint_states(path, got),
     )
 
 
@@ -289,30 +286,20 @@ def _depth_units(
     return recorded
 
 
-def _joint_states(path: Path, layout: TopicMap, got: Scan) -> JointStates | None:
-    """Joint positions (rad) of the JointState topic, sorted by stamp (ns)."""
+def _joint_states(path: Path, got: Scan) -> JointStates | None:
+    """Joint positions (rad) and velocities (rad/s, when every message has them) of the
+    JointState topic, sorted by stamp (ns; of messages with the same stamp the first): see
+    :func:`gaide_core.ros.joint_states_from`. None when no message is usable."""
     if not got.joints:
         return None
-    topic = got.joint_topic
-    chosen = got.joints
-    names = tuple(str(n) for n in chosen[0][1].name)
-    rows: list[tuple[int, Array]] = []
-    for stamp, msg in chosen:
-        position = decode_joint_state(msg, names)
-        if position is not None:
-            rows.append((stamp, position))
-    if len(rows) < len(chosen):
+    states, skipped = joint_states_from(got.joints, BagError)
+    if skipped:
         logger.warning(
             "%s: %d of %d JointState messages on %s lack some of the joints %s; skipped",
             path,
-            len(chosen) - len(rows),
-            len(chosen),
-            topic,
-            names,
+            skipped,
+            len(got.joints),
+            got.joint_topic,
+            None if states is None else states.names,
         )
-    rows.sort(key=lambda r: r[0])
-    return JointStates(
-        names=names,
-        stamps_ns=np.array([s for s, _ in rows], dtype=np.int64),
-        positions=np.array([p for _, p in rows], dtype=np.float64).reshape(len(rows), len(names)),
-    )
+    return states

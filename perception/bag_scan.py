@@ -22,9 +22,10 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import TypesysError
 
 from gaide_core.errors import BagError
+from gaide_core.ros import message_stamp_ns
 from gaide_core.types import Array
 from perception.bag_layout import TopicMap
-from perception.bag_messages import decode_color, decode_depth, decode_transform, message_stamp_ns
+from perception.bag_messages import decode_color, decode_depth, decode_transform
 
 logger = logging.getLogger(__name__)
 

@@ -9,63 +9,45 @@ Layouts (``perception.bag_layout`` lists the topics):
 - ``BagLayout.ROS_WRAPPER``: realsense-ros topics under ``/camera`` (or ``namespace``), 16UC1
   millimetre depth, a CameraInfo beside every image, the extrinsics on ``/tf_static``.
 
-Both add ``/joint_states`` (sensor_msgs/JointState) when ``frames.joint_states`` is set. Every
-message's log time is its stamp; static messages are logged at the first stamp. ROS1 bags carry
-full message definitions and md5 sums (as rosbag record writes them), ROS2 bags carry the type
-definitions in their storage (sqlite3 schema, mcap schema records), so other tools can decode
-them without this project.
+Both add ``/joint_states`` (sensor_msgs/JointState, :func:`gaide_core.ros.joint_state_messages`)
+when ``frames.joint_states`` is set. Every message's log time is its stamp; static messages are
+logged at the first stamp. ROS1 bags carry full message definitions and md5 sums (as rosbag
+record writes them), ROS2 bags carry the type definitions in their storage (sqlite3 schema,
+mcap schema records), so other tools can decode them without this project.
 
-The bag is written into a temporary sibling folder and renamed into place: on any error nothing
-is left at ``path``.
+The bag is written by :func:`gaide_core.ros.write_bag`, the one bag writer of the project:
+into a temporary sibling and renamed into place, so on any error nothing is left at ``path``.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import os
 import re
-import shutil
-import tempfile
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from rosbags.rosbag1 import Writer as Writer1
-from rosbags.rosbag1 import WriterError as Writer1Error
-from rosbags.rosbag2 import StoragePlugin
-from rosbags.rosbag2 import Writer as Writer2
-from rosbags.rosbag2 import WriterError as Writer2Error
-from rosbags.serde import SerdeError
-from rosbags.typesys import TypesysError
 
+from gaide_core import ros
 from gaide_core.errors import BagError
+from gaide_core.joints import JointStates
+from gaide_core.ros import COMPRESSIONS, STORAGES, BagMessage
 from gaide_core.transforms import is_rigid
-from perception.bag_builder import (
-    STREAM_INFO,
-    UINT32,
-    Message,
-    MessageBuilder,
-    MessageList,
-    serialize,
-)
+from perception.bag_builder import STREAM_INFO, UINT32, MessageBuilder
 from perception.bag_layout import (
     CAMERA_INFO,
     FLOAT32,
     IMAGE,
-    JOINT_STATE,
     TF_MESSAGE,
     TF_STATIC,
     TRANSFORM,
     WRAPPER_DEPTH_UNITS,
 )
 from perception.bag_tf import wrapper_tf_tree
-from perception.frames import BagLayout, Frames, ImageStream, JointStates
+from perception.frames import BagLayout, Frames, ImageStream
 
 logger = logging.getLogger(__name__)
 
-STORAGES = ("sqlite3", "mcap")
-COMPRESSIONS = ("lz4", "bz2", "none")  # ROS1 chunk compression
 SDK_DEVICE = "/device_0"
 SDK_STREAMS = {"depth": "/device_0/sensor_0/Depth_0", "color": "/device_0/sensor_1/Color_0"}
 SDK_DEPTH_UNITS = "/device_0/sensor_0/option/Depth Units/value"
@@ -124,21 +106,18 @@ def write_bag(
     else:
         ns = namespace or WRAPPER_NAMESPACE
         messages = _wrapper_messages(frames, builder, ns, aligned_depth)
-    messages.extend(_joint_messages(frames.joint_states, builder, len(messages)))
-    messages.sort()
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent))
-    try:
-        staged = staging / path.name
-        _write_messages(staged, messages, builder, storage, compression, chunk_bytes)
-        if path.exists():
-            raise BagError(f"{path} appeared while writing; not overwriting it")
-        os.rename(staged, path)
-    except _writer_errors() as err:
-        raise BagError(f"{path}: writing the bag failed ({type(err).__name__}: {err})") from err
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+    messages.extend(_joint_messages(frames.joint_states, builder))
+    messages.sort(key=lambda m: m.stamp_ns)  # stable: same stamps keep the order made in
+    ros.write_bag(
+        path,
+        messages,
+        builder,
+        storage=storage,
+        compression=compression,
+        chunk_bytes=chunk_bytes,
+        replace=False,
+        error=BagError,
+    )
     logger.info(
         "wrote %s (%s layout, ROS%d%s): %d messages",
         path,
@@ -148,10 +127,6 @@ def write_bag(
         len(messages),
     )
     return path
-
-
-def _writer_errors() -> tuple[type[BaseException], ...]:
-    return (Writer1Error, Writer2Error, SerdeError, TypesysError, OSError, ValueError, TypeError)
 
 
 def _check_arguments(
@@ -228,26 +203,16 @@ def _check_frames(frames: Frames) -> None:
     units = frames.depth_units
     if units is not None and not (math.isfinite(units) and units > 0):
         raise BagError(f"depth_units must be a positive number of metres, got {units}")
-    js = frames.joint_states
-    if js is not None:
-        if not js.names or len(set(js.names)) != len(js.names):
-            raise BagError(f"joint state names must be non-empty and unique, got {js.names}")
-        if js.positions.shape != (len(js.stamps_ns), len(js.names)):
-            raise BagError(
-                f"joint positions are {js.positions.shape}; expected (M, {len(js.names)}) with "
-                f"M = {len(js.stamps_ns)} stamps"
-            )
-        if len(js.stamps_ns) and (js.stamps_ns.min() < 0 or js.stamps_ns.max() >= _MAX_ROS_TIME_NS):
-            raise BagError(
-                f"joint state stamps must be in [0, 2^32 s) as ROS time, got {js.stamps_ns}"
-            )
+    js = frames.joint_states  # names, shapes and order: checked by JointStates itself
+    if js is not None and (js.stamps_ns[0] < 0 or js.stamps_ns[-1] >= _MAX_ROS_TIME_NS):
+        raise BagError(f"joint state stamps must be in [0, 2^32 s) as ROS time, got {js.stamps_ns}")
 
 
 def _first_stamp(frames: Frames) -> int:
     """Earliest stamp (ns) of the frames and joint states: where static messages go."""
     stamps = [int(s.stamps_ns.min()) for s in (frames.depth, frames.color) if s is not None]
-    if frames.joint_states is not None and len(frames.joint_states.stamps_ns):
-        stamps.append(int(frames.joint_states.stamps_ns.min()))
+    if frames.joint_states is not None:
+        stamps.append(int(frames.joint_states.stamps_ns[0]))
     return min(stamps)
 
 
@@ -259,11 +224,11 @@ def _fps(stream: ImageStream) -> int:
     return round(1e9 / spacing) if spacing > 0 else 0
 
 
-def _sdk_messages(frames: Frames, b: MessageBuilder) -> list[Message]:
+def _sdk_messages(frames: Frames, b: MessageBuilder) -> list[BagMessage]:
     """Topics of the librealsense recorder (depth is the extrinsics reference stream 0)."""
-    out = MessageList()
+    out: list[BagMessage] = []
     t0 = _first_stamp(frames)
-    out.add(t0, "/file_version", UINT32, b.new(UINT32, data=SDK_FILE_VERSION))
+    out.append(BagMessage("/file_version", UINT32, t0, b.new(UINT32, data=SDK_FILE_VERSION)))
     encodings = {"depth": "mono16", "color": "rgb8"}
     both = frames.depth is not None and frames.color is not None
     T = frames.T_color_depth
@@ -273,30 +238,28 @@ def _sdk_messages(frames: Frames, b: MessageBuilder) -> list[Message]:
             continue
         prefix = SDK_STREAMS[kind]
         info = b.new(STREAM_INFO, fps=_fps(stream), encoding=encodings[kind], is_recommended=False)
-        out.add(t0, f"{prefix}/info", STREAM_INFO, info)
+        out.append(BagMessage(f"{prefix}/info", STREAM_INFO, t0, info))
         topic = f"{prefix}/info/camera_info"
-        out.add(t0, topic, CAMERA_INFO, b.camera_info(topic, 0, stream.frame_id, stream.intrinsics))
+        info = b.camera_info(topic, 0, stream.frame_id, stream.intrinsics)
+        out.append(BagMessage(topic, CAMERA_INFO, t0, info))
         if kind == "depth" and frames.depth_units is not None:
-            out.add(t0, SDK_DEPTH_UNITS, FLOAT32, b.new(FLOAT32, data=float(frames.depth_units)))
+            units = b.new(FLOAT32, data=float(frames.depth_units))
+            out.append(BagMessage(SDK_DEPTH_UNITS, FLOAT32, t0, units))
         if poses is not None:
             # tf/0: rs2 extrinsics from reference stream 0 (depth) to this stream, T_this_depth.
-            out.add(t0, f"{prefix}/tf/0", TRANSFORM, b.transform(poses[kind]))
+            out.append(BagMessage(f"{prefix}/tf/0", TRANSFORM, t0, b.transform(poses[kind])))
         topic = f"{prefix}/image/data"
-        for stamp, image in zip(stream.stamps_ns, stream.images, strict=True):
-            out.add(
-                stamp,
-                topic,
-                IMAGE,
-                b.image(topic, int(stamp), stream.frame_id, image, encodings[kind]),
-            )
+        for stamp, image in zip(stream.stamps_ns.tolist(), stream.images, strict=True):
+            msg = b.image(topic, stamp, stream.frame_id, image, encodings[kind])
+            out.append(BagMessage(topic, IMAGE, stamp, msg))
     if frames.depth is not None and frames.depth_units is None:
         logger.warning("frames carry no depth units: the bag will need depth_units= to be read")
-    return out.items
+    return out
 
 
 def _wrapper_messages(
     frames: Frames, b: MessageBuilder, namespace: str, aligned: bool
-) -> list[Message]:
+) -> list[BagMessage]:
     """Topics of realsense-ros: images with a CameraInfo each, extrinsics on /tf_static."""
     depth, color = frames.depth, frames.color
     if frames.depth_units is not None and not math.isclose(
@@ -319,7 +282,7 @@ def _wrapper_messages(
             f"depth and color share the frame id {depth_frame!r}; realsense-ros needs distinct "
             "optical frames (or aligned_depth=True for depth aligned to color)"
         )
-    out = MessageList()
+    out: list[BagMessage] = []
     if depth is not None and color is not None and T is not None:
         tree = wrapper_tf_tree(
             T,
@@ -337,7 +300,8 @@ def _wrapper_messages(
             )
             for parent, child, T_parent_child in tree
         ]
-        out.add(t0, TF_STATIC, TF_MESSAGE, b.new(TF_MESSAGE, transforms=transforms), latching=True)
+        tf = b.new(TF_MESSAGE, transforms=transforms)
+        out.append(BagMessage(TF_STATIC, TF_MESSAGE, t0, tf, latching=True))
     streams = (
         ("depth", depth, "aligned_depth_to_color" if aligned else "depth", depth_frame, "16UC1"),
         ("color", color, "color", color_frame, "rgb8"),
@@ -347,16 +311,12 @@ def _wrapper_messages(
             continue
         image_topic = f"{namespace}/{sub}/{'image_raw' if sub != 'depth' else 'image_rect_raw'}"
         info_topic = f"{namespace}/{sub}/camera_info"
-        for stamp, image in zip(stream.stamps_ns, stream.images, strict=True):
-            out.add(
-                stamp,
-                image_topic,
-                IMAGE,
-                b.image(image_topic, int(stamp), frame_id, image, encoding),
-            )
-            info = b.camera_info(info_topic, int(stamp), frame_id, stream.intrinsics)
-            out.add(stamp, info_topic, CAMERA_INFO, info)
-    return out.items
+        for stamp, image in zip(stream.stamps_ns.tolist(), stream.images, strict=True):
+            msg = b.image(image_topic, stamp, frame_id, image, encoding)
+            out.append(BagMessage(image_topic, IMAGE, stamp, msg))
+            info = b.camera_info(info_topic, stamp, frame_id, stream.intrinsics)
+            out.append(BagMessage(info_topic, CAMERA_INFO, stamp, info))
+    return out
 
 
 def _check_aligned(frames: Frames) -> None:
@@ -381,61 +341,7 @@ def _check_aligned(frames: Frames) -> None:
         raise BagError("aligned depth has T_color_depth = identity; these frames carry another")
 
 
-def _joint_messages(js: JointStates | None, b: MessageBuilder, start: int) -> list[Message]:
-    """JointState messages on /joint_states (positions in rad; no velocity or effort)."""
-    if js is None:
-        return []
-    out = MessageList(start)
-    empty = np.zeros(0, dtype=np.float64)
-    for stamp, position in zip(js.stamps_ns, js.positions, strict=True):
-        msg = b.new(
-            JOINT_STATE,
-            header=b.header(JOINT_STATES_TOPIC, int(stamp), ""),
-            name=list(js.names),
-            position=np.asarray(position, dtype=np.float64),
-            velocity=empty,
-            effort=empty,
-        )
-        out.add(stamp, JOINT_STATES_TOPIC, JOINT_STATE, msg)
-    return out.items
-
-
-def _write_messages(
-    path: Path,
-    messages: list[Message],
-    b: MessageBuilder,
-    storage: str,
-    compression: str,
-    chunk_bytes: int | None,
-) -> None:
-    """Write sorted messages into a new bag at ``path`` with rosbags' writers."""
-    typestore = b.typestore
-    connections: dict[str, Any] = {}
-    if b.ros_version == 1:
-        bag1 = Writer1(path)
-        # LZ4 chunks by default, as the RealSense SDK writes them: depth and color compress
-        # ~3-5x.
-        if compression != "none":
-            bag1.set_compression(Writer1.CompressionFormat[compression.upper()])
-        if chunk_bytes is not None:
-            bag1.chunk_threshold = chunk_bytes
-        with bag1 as writer1:
-            for m in messages:
-                if m.topic not in connections:
-                    connections[m.topic] = writer1.add_connection(
-                        m.topic, m.msgtype, typestore=typestore, latching=1 if m.latching else None
-                    )
-                writer1.write(
-                    connections[m.topic], m.stamp_ns, serialize(typestore, 1, m.msg, m.msgtype)
-                )
-        return
-    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-    with Writer2(path, version=Writer2.VERSION_LATEST, storage_plugin=plugin) as writer2:
-        for m in messages:
-            if m.topic not in connections:
-                connections[m.topic] = writer2.add_connection(
-                    m.topic, m.msgtype, typestore=typestore
-                )
-            writer2.write(
-                connections[m.topic], m.stamp_ns, serialize(typestore, 2, m.msg, m.msgtype)
-            )
+def _joint_messages(js: JointStates | None, b: MessageBuilder) -> list[BagMessage]:
+    """JointState messages on /joint_states (positions in rad, velocities in rad/s when the
+    series has them; no effort)."""
+    return [] if js is None else ros.joint_state_messages(js, b, JOINT_STATES_TOPIC)

@@ -21,36 +21,11 @@ from gaide_core.errors import PerceptionError
 from gaide_core.native_output import quiet_native_output
 from gaide_core.transforms import apply, is_rigid
 from gaide_core.types import Array
+from perception.cloud_cfg import CloudCfg
 from perception.depth import deprojector_for, fuse_depth, project
 from perception.frames import Frames
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True, kw_only=True)
-class CloudCfg:
-    workspace_min: tuple[float, float, float] = (-1.0, -1.0, -0.05)  # m, base frame
-    workspace_max: tuple[float, float, float] = (1.0, 1.0, 1.2)  # m, base frame
-    min_depth: float = 0.15  # m, closer readings are discarded (D4xx minimum range)
-    max_depth: float = 4.0  # m
-    voxel: float = 0.01  # m, downsampling voxel (0: keep every point)
-    outlier_neighbors: int = 16  # statistical outlier removal: neighbours considered
-    outlier_std: float = 2.5  # ... and the std-dev ratio beyond which a point goes
-    robot_padding: float = 0.02  # m added to the robot's spheres when removing its points
-    max_frames: int = 30  # frames fused at most
-
-    def __post_init__(self) -> None:
-        if any(a >= b for a, b in zip(self.workspace_min, self.workspace_max, strict=True)):
-            raise PerceptionError(
-                f"workspace box needs min < max on each axis, got {self.workspace_min} .. "
-                f"{self.workspace_max}"
-            )
-        if not 0 < self.min_depth < self.max_depth:
-            raise PerceptionError(
-                f"need 0 < min_depth < max_depth (m), got {self.min_depth}, {self.max_depth}"
-            )
-        if self.voxel < 0 or self.robot_padding < 0:
-            raise PerceptionError("voxel and robot_padding must be >= 0 m")
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,8 @@
 Frames: ``T_color_depth`` is the pose of the depth optical frame in the color optical frame
 (``p_color = T_color_depth @ p_depth``), both in the ROS optical convention (x right, y down,
 z forward). Stamps are integer nanoseconds; depth images are raw sensor units (uint16), to be
-multiplied by ``depth_units`` (m per unit).
+multiplied by ``depth_units`` (m per unit). Joint states recorded beside the images are a
+:class:`gaide_core.joints.JointStates` series (``error=BagError``).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy.typing as npt
 
 from gaide_core.camera import Intrinsics
 from gaide_core.errors import BagError
+from gaide_core.joints import JointStates
 from gaide_core.types import Array
 
 
@@ -45,22 +47,6 @@ class ImageStream:
 
 
 @dataclass(frozen=True)
-class JointStates:
-    """Joint states recorded beside the images (sensor_msgs/JointState)."""
-
-    names: tuple[str, ...]
-    stamps_ns: npt.NDArray[np.int64]  # (M,)
-    positions: Array  # (M, len(names)) rad
-
-    def at(self, stamp_ns: int) -> Array:
-        """Positions at the recorded state nearest in time to ``stamp_ns``."""
-        if len(self.stamps_ns) == 0:
-            raise BagError("no joint states recorded")
-        i = int(np.argmin(np.abs(self.stamps_ns - stamp_ns)))
-        return self.positions[i].copy()
-
-
-@dataclass(frozen=True)
 class Frames:
     """Everything read from one bag (or made by the synthetic recorder)."""
 
@@ -70,4 +56,4 @@ class Frames:
     color: ImageStream | None
     depth_units: float | None  # m per depth unit; None if the bag does not say
     T_color_depth: Array | None  # (4, 4) depth frame in color frame; None if unknown
-    joint_states: JointStates | None = None
+    joint_states: JointStates | None = None  # the bag's /joint_states (sensor_msgs/JointState)

@@ -10,11 +10,15 @@ pre-check take the :class:`~planning.collision.CollisionChecker` protocol and so
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from gaide_core.errors import ConfigError
-from planning.collision import CollisionChecker, SphereCollisionChecker
-from planning.robot_model import RobotModel
-from planning.sphere_model import SphereModel
-from planning.world import World
+
+if TYPE_CHECKING:  # the checkers load Pinocchio and numba; the names here stay light
+    from planning.collision import CollisionChecker, SphereCollisionChecker
+    from planning.robot_model import RobotModel
+    from planning.sphere_model import SphereModel
+    from planning.world import World
 
 CHECKERS = ("compiled", "numpy")
 DEFAULT_CHECKER = "compiled"
@@ -42,6 +46,8 @@ def make_checker(
     world_ignored_links: tuple[str, ...] | None = None,
 ) -> CollisionChecker:
     """A checker of ``robot`` modelled by ``spheres`` against ``world`` (none: empty)."""
+    from planning.collision import SphereCollisionChecker
+
     cls: type[SphereCollisionChecker] = SphereCollisionChecker
     if check_backend(backend) == "compiled":
         from planning.compiled.checker import CompiledChecker

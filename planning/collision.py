@@ -35,7 +35,7 @@ and is the default everywhere; this class is the reference the tests compare it 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -46,6 +46,9 @@ from planning.kinematics import BatchKinematics
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 from planning.world import EmptyWorld, World
+
+if TYPE_CHECKING:
+    from planning.compiled.tables import Tables
 
 Mask = npt.NDArray[np.bool_]
 
@@ -87,7 +90,11 @@ class Diagnosis:
 class CollisionChecker(Protocol):
     """What planners, the oracle, path processing, timing and simulation need of a checker:
     batched validity of configurations and of certified straight edges (module docstring),
-    and why a configuration is invalid. :func:`planning.checker.make_checker` makes one."""
+    and why a configuration is invalid. :func:`planning.checker.make_checker` makes one.
+
+    Optional: ``kernel_tables()``, the checker exported for the compiled kernels
+    (:class:`KernelTablesSource`). Both sphere checkers have it; the compiled planners
+    (``rrtc``, its shortcut pass) refuse a checker without it."""
 
     robot: RobotModel
     spheres: SphereModel
@@ -128,6 +135,14 @@ class CollisionChecker(Protocol):
     def world_clearance(self, Q: Array, links: tuple[str, ...] | None = None) -> Array: ...
 
     def sphere_centers(self, Q: Array) -> Array: ...
+
+
+@runtime_checkable
+class KernelTablesSource(Protocol):
+    """The optional part of :class:`CollisionChecker` that the compiled planners need: the
+    checker's robot, spheres and world as the kernels' tables."""
+
+    def kernel_tables(self) -> Tables: ...
 
 
 class SphereCollisionChecker:
@@ -291,6 +306,13 @@ class SphereCollisionChecker:
         """Certification of one edge between finite float64 (dof,) arrays."""
         return bool(self.edges_valid(q0[None], q1[None])[0])
 
+    def kernel_tables(self) -> Tables:
+        """This checker's robot, spheres and world as the compiled kernels' tables
+        (:class:`KernelTablesSource`), exported on each call."""
+        from planning.compiled.tables import checker_tables
+
+        return checker_tables(self)
+
     def diagnose(self, q: Array) -> Diagnosis:
         """Which joints, links or link pairs make configuration q (dof,) invalid."""
         q = self.robot.as_configuration(q)
@@ -349,8 +371,9 @@ class SphereCollisionChecker:
         return np.maximum(np.ceil(reach.max(axis=1) / self.resolution), 1).astype(np.int64)
 
     def edges_valid(self, Q0: Array, Q1: Array, *, coarse: bool = True) -> Mask:
-        """(E,) True where the straight joint-space edge Q0[e] -> Q1[e] is certified: the
-        whole motion keeps the margin (module docstring), endpoints included.
+        """(E,) True where the straight joint-space edge Q0[e] -> Q1[e] is certified: along
+        the whole motion every world-checked sphere keeps the margin and no self pair
+        overlaps (no margin there; module docstring), endpoints included.
 
         ``coarse``: check the long edges at every 8th of their samples (and their end) first,
         a necessary condition, so the answer is the same; most edges a planner asks about

@@ -12,7 +12,8 @@ ends are valid and at least 5 cm apart at the end effector.
 - ``shelf_ii``: from one shelf level to another.
 - ``shelf_iii``: deep into a narrow slot (dividers) of a lower, tighter shelf: the hardest.
 
-Seeds: train, validation and test use disjoint ranges (``SEED_RANGES``); a problem's
+Seeds: train, validation and test use disjoint ranges (``SEED_RANGES`` of
+:mod:`planning.family_names`); a problem's
 randomness comes only from (family, seed), so any machine generates the same problem.
 """
 
@@ -30,6 +31,7 @@ from gaide_core.transforms import from_xyz_rpy
 from gaide_core.types import Array
 from planning.checker import endpoint_checker, make_checker
 from planning.collision import CollisionChecker
+from planning.family_names import CATEGORIES, FAMILIES, split_seed
 from planning.ik import IKCfg, solve_ik
 from planning.primitives import Box, Cylinder, Primitive, PrimitiveWorld
 from planning.problem import Problem, difficulty
@@ -37,55 +39,8 @@ from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 
 TABLE_TOP = -0.02  # m
-FAMILIES = ("tabletop", "box", "bins", "shelf_i", "shelf_ii", "shelf_iii")
-SEED_RANGES = {
-    "train": (0, 1_000_000),
-    "val": (1_000_000, 1_100_000),
-    "test": (2_000_000, 2_100_000),
-}
 MIN_EE_DISTANCE = 0.05  # m
-# Problem categories by the hand's clearance at each end (tight: under TIGHT_BELOW).
-CATEGORIES = ("free2free", "free2tight", "tight2free", "tight2tight")
-TIGHT_BELOW = 0.04  # m
-
-
-def parse_families(text: str) -> list[str]:
-    """'all' or a comma-separated list of family names (PlanningError listing valid ones)."""
-    names = (
-        list(FAMILIES)
-        if text.strip() == "all"
-        else [t.strip() for t in text.split(",") if t.strip()]
-    )
-    bad = [n for n in names if n not in FAMILIES]
-    if bad or not names:
-        raise PlanningError(f"unknown families {bad or [text]}; valid: {list(FAMILIES)} or 'all'")
-    return names
-
-
-def parse_categories(text: str) -> list[str]:
-    """'all' or a comma-separated list of categories (PlanningError listing valid ones)."""
-    names = (
-        list(CATEGORIES)
-        if text.strip() == "all"
-        else [t.strip() for t in text.split(",") if t.strip()]
-    )
-    bad = [n for n in names if n not in CATEGORIES]
-    if bad or not names or len(set(names)) != len(names):
-        raise PlanningError(
-            f"categories must be distinct, among {list(CATEGORIES)} or 'all'; got {text!r}"
-        )
-    return names
-
-
-def split_seed(split: str, index: int) -> int:
-    if split not in SEED_RANGES:
-        raise PlanningError(f"unknown split '{split}'; valid: {list(SEED_RANGES)}")
-    lo, hi = SEED_RANGES[split]
-    if not 0 <= index < hi - lo:
-        raise PlanningError(
-            f"problem index {index} is outside the {split} range (0..{hi - lo - 1})"
-        )
-    return lo + index
+TIGHT_BELOW = 0.04  # m: a hand nearer than this to an obstacle is in a tight spot
 
 
 # -- geometry helpers --------------------------------------------------------------------

@@ -23,7 +23,8 @@ import numpy.typing as npt
 
 from gaide_core.errors import PlanningError
 from planning.collision import CollisionChecker
-from planning.families import CATEGORIES, FAMILIES, generate_problem, split_seed
+from planning.families import generate_problem
+from planning.family_names import CATEGORIES, FAMILIES, split_seed
 from planning.path_check import check_path
 from planning.planner import Planner, PlanResult, PlanStatus, check_endpoints
 from planning.problem import Problem, load_problems, problem_from_dict

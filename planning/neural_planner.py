@@ -24,7 +24,8 @@ from gaide_core.types import Array
 from planning.collision import CollisionChecker
 from planning.distance_field import CloudWorld
 from planning.neural.sampler import Sampler, cached_sampler
-from planning.planner import PlanResult, PlanStatus, check_budget, check_endpoints
+from planning.path_ops import pull_string
+from planning.planner import PlanResult, PlanStatus, prepare_plan
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.scene_views import surface_cloud
@@ -131,14 +132,10 @@ class NeuralPlanner:
         cloud: Array | None = None,
     ) -> PlanResult:
         t0 = time.perf_counter()
-        check_budget(budget_s)
-        robot = checker.robot
-        start = robot.as_configuration(start, "start")
-        goal = robot.as_configuration(goal, "goal")
-        bad = check_endpoints(checker, start, goal)
-        if bad is not None:
-            return PlanResult(self.name, bad[0], None, time.perf_counter() - t0, detail=bad[1])
-        run = _Run(self, self.sampler_for(robot), checker, t0 + budget_s, rng)
+        start, goal, refused = prepare_plan(self.name, checker, start, goal, t0, budget_s)
+        if refused is not None:
+            return refused
+        run = _Run(self, self.sampler_for(checker.robot), checker, t0 + budget_s, rng)
         if cloud is None:
             cloud = scene_cloud_of(checker, int(rng.integers(2**31)))
         import torch
@@ -296,20 +293,9 @@ class _Run:
 
     def contract(self, path: Array) -> Array:
         """Lazy states contraction: from each kept node, jump to the farthest node a valid
-        straight edge reaches (all candidate edges of a node checked in one batch)."""
-        out = [path[0]]
-        i, n = 0, len(path)
-        while i < n - 1:
-            self._tick()
-            js = np.arange(n - 1, i + 1, -1)
-            if js.size:
-                ok = self.checker.edges_valid(np.repeat(path[i][None], js.size, axis=0), path[js])
-                j = int(js[np.argmax(ok)]) if ok.any() else i + 1
-            else:
-                j = i + 1
-            out.append(path[j])
-            i = j
-        return np.stack(out)
+        straight edge reaches (:func:`~planning.path_ops.pull_string` with no skip bound),
+        within the deadline."""
+        return pull_string(path, self.checker, max_skip=None, tick=self._tick)
 
     def bad_edges(self, path: Array) -> np.ndarray:
         return np.flatnonzero(~self.checker.edges_valid(path[:-1], path[1:]))

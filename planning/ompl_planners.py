@@ -40,7 +40,8 @@ from ompl import util as ou
 from gaide_core.errors import PlanningError
 from gaide_core.types import Array
 from planning.collision import CollisionChecker
-from planning.planner import PlanResult, PlanStatus, check_budget, check_endpoints
+from planning.path_ops import repair
+from planning.planner import MultiRootPlanner, PlanResult, PlanStatus
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +65,7 @@ _SIMPLIFY_SHARE = 0.1
 _ENDPOINT_TOL = 1e-6
 
 
-def make_planner(name: str, *, simplify: bool = False) -> OmplPlanner:
+def make_ompl_planner(name: str, *, simplify: bool = False) -> OmplPlanner:
     """The OMPL planner called ``name`` (one of :data:`PLANNER_NAMES`)."""
     return OmplPlanner(name, simplify=simplify)
 
@@ -184,8 +185,11 @@ def _path_array(path: Any, dof: int) -> Array:
     return out
 
 
-class OmplPlanner:
+class OmplPlanner(MultiRootPlanner):
     """One of OMPL's geometric planners (see :data:`PLANNER_NAMES`) as a project planner.
+    OMPL's seed is drawn from the plan call's generator. With several roots
+    (:meth:`plan_between`), OMPL roots a start tree at every start and adds the goals as
+    goal-tree roots as its goal tree grows (RRT-Connect).
 
     ``simplify``: run OMPL's PathSimplifier (shortcutting and vertex reduction) on the
     solution within the budget; anytime planners then stop their search at 90 % of it.
@@ -201,55 +205,7 @@ class OmplPlanner:
     def __repr__(self) -> str:
         return f"OmplPlanner({self.name!r}, simplify={self.simplify})"
 
-    def plan(
-        self,
-        checker: CollisionChecker,
-        start: Array,
-        goal: Array,
-        *,
-        budget_s: float,
-        rng: np.random.Generator,
-    ) -> PlanResult:
-        """Plan from ``start`` to ``goal`` (dof,) rad within ``budget_s`` seconds of wall time
-        (set-up included). OMPL's seed is drawn from ``rng``."""
-        t0 = time.perf_counter()
-        check_budget(budget_s)
-        robot = checker.robot
-        start = robot.as_configuration(start, "start")
-        goal = robot.as_configuration(goal, "goal")
-        bad = check_endpoints(checker, start, goal)
-        if bad is not None:
-            return PlanResult(self.name, bad[0], None, time.perf_counter() - t0, detail=bad[1])
-        return self._plan(checker, start[None], goal[None], t0, budget_s, rng)
-
-    def plan_between(
-        self,
-        checker: CollisionChecker,
-        starts: Array,
-        goals: Array,
-        *,
-        budget_s: float,
-        rng: np.random.Generator,
-    ) -> PlanResult:
-        """Plan from any of ``starts`` (m, dof) to any of ``goals`` (n, dof) rad, all of them
-        valid configurations the caller has checked: OMPL roots a start tree at every start
-        and adds the goals as goal-tree roots as its goal tree grows (RRT-Connect). The
-        path's first and last waypoints are one start and one goal, exactly; the result's
-        stats name them as ``start_index`` and ``goal_index``."""
-        t0 = time.perf_counter()
-        check_budget(budget_s)
-        dof = checker.robot.dof
-        starts = np.asarray(starts, float)
-        goals = np.asarray(goals, float)
-        for what, a in (("starts", starts), ("goals", goals)):
-            if a.ndim != 2 or a.shape[1] != dof or not len(a) or not np.isfinite(a).all():
-                raise PlanningError(
-                    f"{what} must be a finite (n >= 1, {dof}) array of configurations, "
-                    f"got shape {a.shape}"
-                )
-        return self._plan(checker, starts, goals, t0, budget_s, rng)
-
-    def _plan(
+    def _search(
         self,
         checker: CollisionChecker,
         starts: Array,
@@ -389,7 +345,7 @@ class OmplPlanner:
         ):
             # OMPL's AORRTC (2.0) shortcuts its solution to the straight start-goal edge when
             # that edge is free, then rejects that 2-state path as "zero-length" and reports
-            # an invalid goal (the ends passed check_endpoints, so the goal is valid). The
+            # an invalid goal (the ends passed prepare_plan's check, so the goal is valid). The
             # path it had is the straight edge, checked here again.
             path = np.stack([starts[0], goals[0]])
             stats["raw_cost"] = float(np.linalg.norm(goals[0] - starts[0]))
@@ -450,7 +406,7 @@ class OmplPlanner:
             return PlanStatus.FAILED, None, f"OMPL's path ends {gap:.3g} rad off", stats
         path[0], path[-1] = starts[i], goals[j]
         stats["start_index"], stats["goal_index"] = i, j
-        path, repaired, bad = _repair(checker, path)
+        path, repaired, bad = repair(path, checker)
         stats["repaired_edges"] = repaired
         if bad is not None:
             return (
@@ -460,29 +416,3 @@ class OmplPlanner:
                 stats,
             )
         return PlanStatus.SUCCESS, path, "", stats
-
-
-def _repair(checker: CollisionChecker, path: Array) -> tuple[Array, int, int | None]:
-    """``path`` (K, dof) with the edges the checker rejects replaced by skipping one of their
-    waypoints, where the checker accepts the skip. Returns the path, the number of
-    waypoints dropped, and the index of an edge that could not be repaired (None if none).
-
-    OMPL's path simplifier (run by AORRTC on every solution, and by ``simplify=True``) puts
-    waypoints in the middle of edges it has checked and does not check the pieces again;
-    sampled differently, a piece can come within the margin where the whole edge did not.
-    Skipping the inserted waypoint restores the checked edge or another one the checker
-    accepts; every edge of the result has passed the checker.
-    """
-    dropped = 0
-    bad = checker.first_invalid_edge(path)
-    while bad is not None:
-        # Skip the edge's far end, else its near end (never the start or the goal).
-        for k, (a, b) in ((bad + 1, (bad, bad + 2)), (bad, (bad - 1, bad + 1))):
-            if 0 < k < len(path) - 1 and checker.edge_valid(path[a], path[b]):
-                path = np.delete(path, k, axis=0)
-                dropped += 1
-                break
-        else:
-            return path, dropped, bad
-        bad = checker.first_invalid_edge(path)
-    return path, dropped, None

@@ -21,9 +21,9 @@ from gaide_core.errors import PlanningError
 from gaide_core.types import Array
 from planning.collision import CollisionChecker
 from planning.ompl_planners import ANYTIME_PLANNERS, OmplPlanner
-from planning.planner import PlanResult, PlanStatus, check_endpoints, path_length
+from planning.path_ops import resample
+from planning.planner import PlanResult, PlanStatus, path_length, prepare_plan
 from planning.rrtc import CompiledRRTConnect, RRTCCfg, shorten
-from planning.shortcut import resample
 
 log = logging.getLogger(__name__)
 
@@ -75,11 +75,9 @@ def oracle_path(
     """
     t0 = time.perf_counter()
     cfg = cfg or OracleCfg()
-    start = checker.robot.as_configuration(start, "start")
-    goal = checker.robot.as_configuration(goal, "goal")
-    bad = check_endpoints(checker, start, goal)
-    if bad is not None:
-        return PlanResult("oracle", bad[0], None, time.perf_counter() - t0, detail=bad[1])
+    start, goal, refused = prepare_plan("oracle", checker, start, goal, t0)
+    if refused is not None:
+        return refused
     search = CompiledRRTConnect(RRTCCfg(max_iterations=cfg.iterations, simplify=False))
     candidates: list[tuple[str, Array]] = []
     runs: list[tuple[str, str, int]] = []  # (run, status, iterations)

@@ -13,6 +13,7 @@ import numpy as np
 
 from gaide_core.types import Array
 from planning.collision import SphereCollisionChecker
+from planning.path_ops import first_invalid_sample
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
@@ -63,13 +64,12 @@ def check_path(
     ok = checker.edges_valid_sampled(p[:-1], p[1:])
     if not ok.all():
         bad = int(np.flatnonzero(~ok)[0])
-        steps = checker.edge_steps(p[bad : bad + 1], p[bad + 1 : bad + 2])[0]
-        samples = p[bad] + np.linspace(0, 1, steps + 1)[:, None] * (p[bad + 1] - p[bad])
-        first = samples[np.flatnonzero(~checker.config_valid(samples))[0]]
+        hit = first_invalid_sample(checker, p[bad], p[bad + 1])
+        assert hit is not None  # the edge failed at one of these samples
         return PathCheck(
             False,
             f"edge {bad} of {len(p) - 1} collides ({int((~ok).sum())} bad edges): "
-            f"{checker.diagnose(first)}",
+            f"{checker.diagnose(hit[1])}",
             bad,
         )
     if meshes:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import enum
 import math
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -73,6 +75,95 @@ def check_endpoints(
         if not diag.valid:
             return status, f"{what}: {diag}"
     return None
+
+
+def prepare_plan(
+    name: str,
+    checker: CollisionChecker,
+    start: Array,
+    goal: Array,
+    t0: float,
+    budget_s: float | None = None,
+) -> tuple[Array, Array, PlanResult | None]:
+    """The prologue every planner's ``plan`` shares: ``budget_s`` checked (PlanningError;
+    None: the caller has no clock budget), ``start`` and ``goal`` as (dof,) configurations
+    of the checker's robot (errors name them), and, for an invalid one, the
+    START_INVALID / GOAL_INVALID result of planner ``name`` timed from ``t0`` (perf_counter
+    s); None as the third item when both are valid."""
+    if budget_s is not None:
+        check_budget(budget_s)
+    robot = checker.robot
+    start = robot.as_configuration(start, "start")
+    goal = robot.as_configuration(goal, "goal")
+    bad = check_endpoints(checker, start, goal)
+    if bad is None:
+        return start, goal, None
+    return start, goal, PlanResult(name, bad[0], None, time.perf_counter() - t0, detail=bad[1])
+
+
+def check_roots(checker: CollisionChecker, starts: Array, goals: Array) -> tuple[Array, Array]:
+    """``starts`` (m, dof) and ``goals`` (n, dof) of a ``plan_between`` call as float arrays;
+    PlanningError unless each is a finite (n >= 1, dof) array. Their validity is the
+    caller's to check."""
+    dof = checker.robot.dof
+    roots = []
+    for what, a in (("starts", starts), ("goals", goals)):
+        arr = np.asarray(a, float)
+        if arr.ndim != 2 or arr.shape[1] != dof or not len(arr) or not np.isfinite(arr).all():
+            raise PlanningError(
+                f"{what} must be a finite (n >= 1, {dof}) array of configurations, "
+                f"got shape {arr.shape}"
+            )
+        roots.append(arr)
+    return roots[0], roots[1]
+
+
+class MultiRootPlanner:
+    """Base of the planners that search from several roots at once (the compiled and the
+    OMPL planners): :meth:`plan` checks the budget and the endpoints (invalid ones are
+    statuses), :meth:`plan_between` the budget and the roots' shapes, and both hand the
+    roots to ``_search`` with the call's start time (perf_counter s) and budget (s)."""
+
+    name: str
+    # The subclass's search: (checker, starts, goals, t0, budget_s, rng) -> result.
+    _search: Callable[
+        [CollisionChecker, Array, Array, float, float, np.random.Generator], PlanResult
+    ]
+
+    def plan(
+        self,
+        checker: CollisionChecker,
+        start: Array,
+        goal: Array,
+        *,
+        budget_s: float,
+        rng: np.random.Generator,
+    ) -> PlanResult:
+        """Plan from ``start`` to ``goal`` (dof,) rad within ``budget_s`` seconds of wall time
+        (set-up included), with the randomness drawn from ``rng``."""
+        t0 = time.perf_counter()
+        start, goal, refused = prepare_plan(self.name, checker, start, goal, t0, budget_s)
+        if refused is not None:
+            return refused
+        return self._search(checker, start[None], goal[None], t0, budget_s, rng)
+
+    def plan_between(
+        self,
+        checker: CollisionChecker,
+        starts: Array,
+        goals: Array,
+        *,
+        budget_s: float,
+        rng: np.random.Generator,
+    ) -> PlanResult:
+        """Plan from any of ``starts`` (m, dof) to any of ``goals`` (n, dof) rad, all of them
+        valid configurations the caller has checked. The path's first and last rows are one
+        start and one goal, exactly; the result's stats name them as ``start_index`` and
+        ``goal_index``."""
+        t0 = time.perf_counter()
+        check_budget(budget_s)
+        starts, goals = check_roots(checker, starts, goals)
+        return self._search(checker, starts, goals, t0, budget_s, rng)
 
 
 class Planner(Protocol):

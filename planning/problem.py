@@ -52,6 +52,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
+from gaide_core.atomic import write_bytes_atomic
 from gaide_core.errors import PlanningError
 from gaide_core.text_io import one_line, parse_yaml, read_text
 from gaide_core.types import Array
@@ -277,6 +278,4 @@ def save_problems(path: str | Path, problems: list[Problem]) -> None:
         if target.suffix.lower() == ".json"
         else yaml.safe_dump(payload, sort_keys=False)
     )
-    tmp = target.with_name(target.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(target)
+    write_bytes_atomic(target, text.encode(), PlanningError)

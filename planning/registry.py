@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from gaide_core.errors import ConfigError, PlanningError
-from planning.planner import Planner
+
+if TYPE_CHECKING:
+    from planning.planner import Planner
 
 CLASSICAL = ("rrtconnect", "rrtstar", "informed_rrtstar", "bitstar", "aorrtc")
 # Compiled whole (planning/compiled): RRT-Connect with its shortcut pass.

@@ -19,7 +19,7 @@ import numpy.typing as npt
 import pinocchio as pin
 import trimesh
 
-from gaide_core.errors import RobotModelError
+from gaide_core.errors import GaideError, RobotModelError
 from gaide_core.types import Array
 from planning.robot_config import RobotConfig, load_robot_config
 
@@ -208,10 +208,16 @@ class RobotModel:
         """(n, dof) configurations uniform within the joint limits."""
         return rng.uniform(self.lower, self.upper, size=(n, self.dof))
 
-    def configuration_from_text(self, text: str, what: str = "configuration") -> Array:
+    def configuration_from_text(
+        self,
+        text: str,
+        what: str = "configuration",
+        error: type[GaideError] = RobotModelError,
+    ) -> Array:
         """The joint vector ``text`` names: a named configuration of the robot config, or
-        dof comma-separated angles (rad). RobotModelError naming the forms, or the joints when
-        the count is wrong (the text is the user's setting; limits are not checked here)."""
+        dof comma-separated angles (rad). Otherwise ``error`` (a run's setting: ConfigError)
+        naming the forms, or the joints when the count is wrong (limits are not checked
+        here)."""
         spec = text.strip()
         named = self.config.named_configurations
         if spec in named:
@@ -221,12 +227,12 @@ class RobotModel:
         except ValueError:
             values = []
         if not values or not all(math.isfinite(v) for v in values):
-            raise RobotModelError(
+            raise error(
                 f"{what} '{text}': give {self.dof} comma-separated angles (rad) or one of the "
                 f"named configurations {sorted(named) or '(none)'}"
             )
         if len(values) != self.dof:
-            raise RobotModelError(
+            raise error(
                 f"{what} '{text}' has {len(values)} values; the robot has {self.dof} joints "
                 f"{list(self.joint_names)} (rad)"
             )

@@ -22,16 +22,10 @@ import numpy as np
 
 from gaide_core.errors import PlanningError
 from gaide_core.types import Array
-from planning.collision import CollisionChecker, SphereCollisionChecker
+from planning.collision import CollisionChecker, KernelTablesSource
 from planning.compiled import rrtc_kernel, shortcut_kernel
-from planning.compiled.tables import Tables, checker_tables
-from planning.planner import (
-    PlanResult,
-    PlanStatus,
-    check_budget,
-    check_endpoints,
-    path_length,
-)
+from planning.compiled.tables import Tables
+from planning.planner import MultiRootPlanner, PlanResult, PlanStatus, path_length
 
 _BLOCK = 256  # uniform samples drawn at a time (and iterations per kernel call, at most)
 _MIN_SAVING = 1e-9  # rad: smaller shortcut savings are rounding noise
@@ -60,19 +54,21 @@ class RRTCCfg:
 
 
 def kernel_tables(checker: CollisionChecker) -> Tables:
-    """The compiled tables of ``checker`` (made once and kept on a compiled checker)."""
-    tables = getattr(checker, "tables", None)
-    if isinstance(tables, Tables):
-        return tables
-    if not isinstance(checker, SphereCollisionChecker):
+    """The compiled tables of ``checker``, through its optional ``kernel_tables()`` (see
+    :class:`~planning.collision.KernelTablesSource`; made once and kept on a compiled
+    checker); PlanningError for a checker without them."""
+    if not isinstance(checker, KernelTablesSource):
         raise PlanningError(
-            f"the compiled planners need a sphere collision checker, not {type(checker).__name__}"
+            "the compiled planners need a checker with kernel tables (the sphere checkers), "
+            f"not {type(checker).__name__}"
         )
-    return checker_tables(checker)
+    return checker.kernel_tables()
 
 
-class CompiledRRTConnect:
-    """The ``rrtc`` planner (module docstring)."""
+class CompiledRRTConnect(MultiRootPlanner):
+    """The ``rrtc`` planner (module docstring), bounded by ``budget_s`` seconds of wall time
+    and ``max_iterations`` iterations. With several roots (:meth:`plan_between`), every
+    start roots the start tree and every goal the goal tree."""
 
     name = "rrtc"
 
@@ -82,54 +78,6 @@ class CompiledRRTConnect:
     def __repr__(self) -> str:
         return f"CompiledRRTConnect({self.cfg})"
 
-    def plan(
-        self,
-        checker: CollisionChecker,
-        start: Array,
-        goal: Array,
-        *,
-        budget_s: float,
-        rng: np.random.Generator,
-    ) -> PlanResult:
-        """Plan from ``start`` to ``goal`` (dof,) rad within ``budget_s`` seconds of wall
-        time and ``max_iterations`` iterations."""
-        t0 = time.perf_counter()
-        check_budget(budget_s)
-        robot = checker.robot
-        start = robot.as_configuration(start, "start")
-        goal = robot.as_configuration(goal, "goal")
-        bad = check_endpoints(checker, start, goal)
-        if bad is not None:
-            return PlanResult(self.name, bad[0], None, time.perf_counter() - t0, detail=bad[1])
-        return self._solve(checker, start[None], goal[None], t0, t0 + budget_s, rng)
-
-    def plan_between(
-        self,
-        checker: CollisionChecker,
-        starts: Array,
-        goals: Array,
-        *,
-        budget_s: float,
-        rng: np.random.Generator,
-    ) -> PlanResult:
-        """Plan from any of ``starts`` (m, dof) to any of ``goals`` (n, dof) rad, all valid
-        configurations the caller has checked: every start roots the start tree and every
-        goal the goal tree. The path's first and last rows are one start and one goal,
-        exactly; ``stats`` name them as ``start_index`` and ``goal_index``."""
-        t0 = time.perf_counter()
-        check_budget(budget_s)
-        dof = checker.robot.dof
-        roots = []
-        for what, a in (("starts", starts), ("goals", goals)):
-            arr = np.asarray(a, float)
-            if arr.ndim != 2 or arr.shape[1] != dof or not len(arr) or not np.isfinite(arr).all():
-                raise PlanningError(
-                    f"{what} must be a finite (n >= 1, {dof}) array of configurations, "
-                    f"got shape {arr.shape}"
-                )
-            roots.append(arr)
-        return self._solve(checker, roots[0], roots[1], t0, t0 + budget_s, rng)
-
     def search(
         self, checker: CollisionChecker, start: Array, goal: Array, rng: np.random.Generator
     ) -> PlanResult:
@@ -137,18 +85,19 @@ class CompiledRRTConnect:
         alone, no clock: the same seed gives the same result on any machine, under any
         load (what the training oracle needs)."""
         t0 = time.perf_counter()
-        return self._solve(checker, start[None], goal[None], t0, None, rng)
+        return self._search(checker, start[None], goal[None], t0, None, rng)
 
-    def _solve(
+    def _search(
         self,
         checker: CollisionChecker,
         starts: Array,
         goals: Array,
         t0: float,
-        deadline: float | None,  # perf_counter time; None: iterations only
+        budget_s: float | None,  # s from t0; None: iterations only
         rng: np.random.Generator,
     ) -> PlanResult:
         cfg = self.cfg
+        deadline = None if budget_s is None else t0 + budget_s  # perf_counter time
         I, F, field = kernel_tables(checker).args()  # noqa: E741 (layout names)
         dof = starts.shape[1]
         if len(starts) == len(goals) == 1 and checker.edge_valid(starts[0], goals[0]):

@@ -18,6 +18,7 @@ import numpy.typing as npt
 import pinocchio as pin
 import yaml
 
+from gaide_core.atomic import write_bytes_atomic
 from gaide_core.errors import RobotModelError
 from gaide_core.text_io import load_yaml
 from gaide_core.types import Array
@@ -84,10 +85,7 @@ class SphereModel:
 
     def save(self, path: str | Path) -> None:
         """Write the cuRobo YAML layout atomically."""
-        target = Path(path)
-        tmp = target.with_name(target.name + ".tmp")
-        tmp.write_text(self.to_yaml())
-        tmp.replace(target)
+        write_bytes_atomic(path, self.to_yaml().encode(), RobotModelError)
 
     @staticmethod
     def load(path: str | Path) -> SphereModel:

@@ -149,7 +149,7 @@ CASES: dict[str, Case] = {
     "time-rate-too-high": Case(
         lambda t, made: ["time", str(made["plan"]), "--rate", "100000", "-o", str(t / "x.csv")],
         8,
-        "rate_hz must be in [1, 2000] Hz",
+        "rate_hz must be a number in [1, 2000] Hz",
         ("x.csv",),
     ),
     "trajectory-cut-at-a-line": Case(

@@ -9,12 +9,10 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from tqdm import tqdm
-
 from gaide.commands.execution import add_bench_parser
 from gaide.common import add_checker_option, print_table, robot_and_spheres, seed, write_json
-from gaide_core.errors import ConfigError
-from planning.bench_collision import CollisionBenchCfg, run_collision_benchmark
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import ConfigError, ExecutionError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -95,6 +93,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_collision(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from planning.bench_collision import CollisionBenchCfg, run_collision_benchmark
+
     robot, spheres = robot_and_spheres(args.robot)
     cfg = (
         CollisionBenchCfg(
@@ -135,6 +137,8 @@ def cmd_collision(args: argparse.Namespace) -> int:
 
 
 def cmd_perception(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
     from gaide.bench_perception import run_perception_benchmark
 
     robot, spheres = robot_and_spheres(args.robot)
@@ -169,8 +173,10 @@ def cmd_perception(args: argparse.Namespace) -> int:
 def cmd_planning(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from tqdm import tqdm
+
     from gaide_core.errors import PlanningError
-    from planning.families import parse_families
+    from planning.family_names import parse_families
     from planning.harness import HarnessCfg, run_harness
     from planning.harness_report import category_table, markdown_table, plot, text_table
     from planning.registry import parse_planners
@@ -212,9 +218,8 @@ def cmd_planning(args: argparse.Namespace) -> int:
     if args.json:
         out = Path(args.json)
         write_json(out, result.to_json())
-        out.with_suffix(".md").write_text(
-            markdown_table(result) + "\n\nSuccess per category:\n\n" + category_table(result) + "\n"
-        )
+        md = markdown_table(result) + "\n\nSuccess per category:\n\n" + category_table(result)
+        write_bytes_atomic(out.with_suffix(".md"), (md + "\n").encode(), ExecutionError)
         plot(result, out.with_suffix(".png"))
         print(f"wrote {out}, {out.with_suffix('.md')}, {out.with_suffix('.png')}")
     return 0
@@ -222,9 +227,11 @@ def cmd_planning(args: argparse.Namespace) -> int:
 
 def cmd_oracle(args: argparse.Namespace) -> int:
     import numpy as np
+    from tqdm import tqdm
 
     from planning.checker import make_checker
-    from planning.families import generate_problem, parse_families, split_seed
+    from planning.families import generate_problem
+    from planning.family_names import parse_families, split_seed
     from planning.oracle import oracle_consistency, oracle_quality
 
     robot, spheres = robot_and_spheres(args.robot)
@@ -316,7 +323,8 @@ def cmd_sampler(args: argparse.Namespace) -> int:
     import numpy as np
     import torch
 
-    from planning.families import generate_problem, split_seed
+    from planning.families import generate_problem
+    from planning.family_names import split_seed
     from planning.neural.checkpoint import shipped_checkpoint
     from planning.neural.sampler import NeuralSampler
     from planning.scene_views import surface_cloud

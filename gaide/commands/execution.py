@@ -11,11 +11,15 @@ from typing import Any
 
 import numpy as np
 
+from execution.sim_cfg import SimCfg
+from execution.timing_cfg import TimingCfg, TimingMode
 from gaide.common import add_checker_option, print_table, robot_and_spheres, write_json
 from gaide.scene_spec import HELP as SCENE_HELP
 from gaide.scene_spec import Scene, load_scene
 from gaide_core.errors import ConfigError, ExecutionError, TimingError
 from gaide_core.plan_file import PlanFile, read_plan
+
+TIMING, SIM = TimingCfg(), SimCfg()  # the defaults the flags show (gaide run's too)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -31,14 +35,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="trajectory file, repeatable; the suffix picks the format: .csv, .json, "
         ".bag (ROS1 JointTrajectory) or a folder name without a suffix (ROS2 bag)",
     )
-    tm.add_argument("--mode", choices=["exact", "blended"], default="blended")
-    tm.add_argument("--rate", type=float, default=500.0, help="controller rate (Hz)")
+    tm.add_argument("--mode", choices=[m.value for m in TimingMode], default=TIMING.mode.value)
+    tm.add_argument("--rate", type=float, default=TIMING.rate_hz, help="controller rate (Hz)")
     tm.add_argument("--scene", help=f"the path's scene (default: the file's 'scene'): {SCENE_HELP}")
     tm.add_argument("--plot", help="PNG of position, velocity, acceleration, jerk and limits")
     tm.add_argument("--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS2 bags")
     for kind, unit in (("velocity", "rad/s"), ("acceleration", "rad/s^2"), ("jerk", "rad/s^3")):
         tm.add_argument(
-            f"--{kind}-scale", type=float, default=1.0, help=f"{kind} limits x this, in (0, 1]"
+            f"--{kind}-scale",
+            type=float,
+            default=getattr(TIMING, f"{kind}_scale"),
+            help=f"{kind} limits x this, in (0, 1]",
         )
         tm.add_argument(f"--max-{kind}", help=f"per-joint {kind} limits ({unit}), comma-separated")
     tm.add_argument("--no-shortcut", action="store_true", help="time the path as given")
@@ -57,7 +64,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     )
     sim.add_argument("--json", help="write the tracking report here")
     sim.add_argument("--plot", help="PNG of planned vs simulated positions and the error")
-    sim.add_argument("--settle", type=float, default=0.0, help="hold the goal this long (s)")
+    sim.add_argument(
+        "--settle", type=float, default=SIM.settle_s, help="hold the goal this long (s)"
+    )
     sim.add_argument("--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS2 bags")
     sim.add_argument("--robot", help="robot config YAML (default: UR5)")
     add_checker_option(sim)
@@ -106,22 +115,9 @@ def _scene_for(
 
 
 def cmd_time(args: argparse.Namespace) -> int:
-    from execution.export import check_trajectory_outputs, write_trajectory
-    from execution.plots import trajectory_png
-    from execution.ruckig_timing import RuckigParameterizer
-    from execution.timing_cfg import TimingCfg, TimingMode
-    from execution.verify import limit_violations
-    from planning.checker import make_checker
-
-    check_trajectory_outputs(args.output)
-    robot, spheres = robot_and_spheres(args.robot)
+    # The inputs first (the path file, the settings): a mistake there is said at once,
+    # before the robot, Ruckig and the plots load.
     plan = read_plan(args.path)
-    names = plan.joint_names
-    if names is not None and names != tuple(robot.joint_names):
-        raise TimingError(
-            f"{args.path}: joint_names {list(names)} are not the robot's {list(robot.joint_names)}; "
-            "give the robot config the path was planned for (--robot)"
-        )
     cfg = TimingCfg(
         rate_hz=args.rate,
         mode=TimingMode.parse(args.mode),
@@ -133,6 +129,20 @@ def cmd_time(args: argparse.Namespace) -> int:
         max_jerk=_floats(args.max_jerk, "max-jerk"),
         shortcut=not args.no_shortcut,
     )
+    from execution.export import check_trajectory_outputs, write_trajectory
+    from execution.plots import trajectory_png
+    from execution.ruckig_timing import RuckigParameterizer
+    from execution.verify import limit_violations
+    from planning.checker import make_checker
+
+    check_trajectory_outputs(args.output)
+    robot, spheres = robot_and_spheres(args.robot)
+    names = plan.joint_names
+    if names is not None and names != tuple(robot.joint_names):
+        raise TimingError(
+            f"{args.path}: joint_names {list(names)} are not the robot's {list(robot.joint_names)}; "
+            "give the robot config the path was planned for (--robot)"
+        )
     scene = _scene_for(args, plan, args.path, robot, spheres)
     checker = make_checker(robot, spheres, scene.world, backend=args.checker)
     traj = RuckigParameterizer(cfg).parameterize(plan.path, checker)
@@ -172,13 +182,16 @@ def cmd_time(args: argparse.Namespace) -> int:
 
 
 def _read_any_trajectory(path: str) -> Any:
-    from execution.ros_bags import read_trajectory_bag
-    from execution.trajectory_io import read_trajectory
-
     source = Path(path)
+    if not source.exists():  # said before the readers (and Ruckig, rosbags) load
+        raise ExecutionError(f"trajectory file {source} does not exist")
     if source.suffix in (".csv", ".json"):
+        from execution.trajectory_io import read_trajectory
+
         return read_trajectory(source)
     if source.suffix in (".bag", ".mcap", "") or source.is_dir():
+        from execution.ros_bags import read_trajectory_bag
+
         return read_trajectory_bag(source)
     raise ExecutionError(f"{source}: a trajectory is a .csv, .json or a bag")
 
@@ -193,22 +206,23 @@ def _per_joint_rows(
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    traj = _read_any_trajectory(args.trajectory)  # before the simulator and the robot load
+    sim_cfg = SimCfg(settle_s=args.settle)
     from execution.compare import compare
     from execution.export import check_log_outputs, write_log
     from execution.plots import comparison_png
-    from execution.simulate import SimCfg, simulate
+    from execution.simulate import simulate
     from planning.checker import make_checker
 
     check_log_outputs(args.log)
     robot, spheres = robot_and_spheres(args.robot)
-    traj = _read_any_trajectory(args.trajectory)
     scene = load_scene(args.scene, robot, spheres)
     result = simulate(
         traj,
         robot,
         primitives=scene.primitives,
         cloud=scene.cloud,
-        cfg=SimCfg(settle_s=args.settle),
+        cfg=sim_cfg,
         start_ns=time.time_ns(),
         checker=make_checker(robot, spheres, scene.world, backend=args.checker),
     )
@@ -242,12 +256,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    if not Path(args.log).exists():  # said before the readers load
+        raise ExecutionError(f"log file {args.log} does not exist")
+    traj = _read_any_trajectory(args.trajectory)
     from execution.compare import CompareCfg, compare
     from execution.export import read_log
     from execution.plots import comparison_png
-    from execution.staging import staged_outputs
+    from gaide_core.atomic import write_files_atomic
 
-    traj = _read_any_trajectory(args.trajectory)
     log = read_log(args.log, args.topic)
     result = compare(
         traj, log, CompareCfg(expected_start_s=args.expected_start, max_delay_s=args.max_delay)
@@ -258,9 +274,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         outputs[Path(args.json)] = (json.dumps(payload, indent=2) + "\n").encode()
     if args.plot:
         outputs[Path(args.plot)] = comparison_png(result)
-    with staged_outputs(list(outputs), ExecutionError) as staged:
-        for tmp, data in zip(staged, outputs.values(), strict=True):
-            tmp.write_bytes(data)
+    write_files_atomic(list(outputs.items()), ExecutionError)
     rows = [
         (
             "delay",
@@ -294,7 +308,7 @@ def cmd_bench_timing(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from execution.bench_timing import TimingBenchCfg, run_timing_benchmark
-    from planning.families import parse_families
+    from planning.family_names import parse_families
 
     robot, spheres = robot_and_spheres(args.robot)
     cfg = TimingBenchCfg(

@@ -10,12 +10,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from gaide.common import add_checker_option, print_table, robot_and_spheres, seed
+from gaide.pipeline.config import PlanningCfg
 from gaide_core.errors import ConfigError, ExecutionError, PlanningError
 from gaide_core.plan_file import PlanFile, write_plan
-from planning.families import FAMILIES, generate_problem, parse_families, split_seed
+from planning.family_names import FAMILIES, parse_families, split_seed
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -96,7 +96,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "--checkpoint",
         help="weights for a neural planner, of its model (default: the shipped ones)",
     )
-    pl.add_argument("--budget", type=float, default=5.0, help="seconds")
+    pl.add_argument(
+        "--budget", type=float, default=PlanningCfg().budget_s, help="seconds (gaide run's default)"
+    )
     add_checker_option(pl)
     pl.add_argument("--robot", help="robot config YAML (default: UR5)")
     pl.add_argument("-o", "--output", required=True, help="path JSON")
@@ -104,7 +106,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_data_generate(args: argparse.Namespace) -> int:
-    from planning.families import parse_categories
+    from tqdm import tqdm
+
+    from planning.family_names import parse_categories
     from planning.neural.data import DataCfg
     from planning.neural.data_backends import generate
     from planning.oracle import OracleCfg
@@ -164,6 +168,8 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
     from planning.neural.train import TrainCfg, Trainer
 
     robot, _ = robot_and_spheres(args.robot)
@@ -244,6 +250,7 @@ def _configuration(text: str | None, robot: Any, what: str) -> np.ndarray:
 def cmd_plan(args: argparse.Namespace) -> int:
     from planning.checker import make_checker
     from planning.distance_field import CloudWorld
+    from planning.families import generate_problem
     from planning.registry import make_planner
 
     robot, spheres = robot_and_spheres(args.robot)

@@ -7,16 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.overlay import save_png
-from calibration.targets import parse_target
 from gaide.common import print_table, robot_and_spheres, write_json
-from gaide.flows.calibrate import calibrate_bag
-from gaide.flows.perceive import perceive_bag
 from gaide_core.errors import ConfigError
-from gaide_core.transforms import from_xyz_quat, to_xyz_quat
-from perception.cloud import CloudCfg, save_ply
-from perception.render import render_png
-from planning.robot_model import load_robot
+from perception.cloud_cfg import CloudCfg
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -59,7 +52,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="a bag without depth-to-color extrinsics: assume the identity (~15 mm off on a "
         "D400) instead of refusing it",
     )
-    per.add_argument("--voxel", type=float, default=0.01, help="downsampling voxel (m)")
+    per.add_argument("--voxel", type=float, default=CloudCfg().voxel, help="downsampling voxel (m)")
     per.add_argument(
         "--workspace", help="crop box in the base frame: xmin,ymin,zmin,xmax,ymax,zmax (m)"
     )
@@ -80,6 +73,12 @@ def _floats(text: str, n: int, what: str) -> list[float]:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
+    from calibration.overlay import save_png
+    from calibration.targets import parse_target
+    from gaide.flows.calibrate import calibrate_bag
+    from gaide_core.transforms import to_xyz_quat
+    from planning.robot_model import load_robot
+
     target = parse_target(args.target) if args.target else None
     robot = load_robot(args.robot) if args.mode == "hand-eye" else None
     run = calibrate_bag(
@@ -135,6 +134,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def cmd_perceive(args: argparse.Namespace) -> int:
+    from gaide.flows.perceive import perceive_bag
+    from gaide_core.transforms import from_xyz_quat
+    from perception.cloud import save_ply
+    from perception.render import render_png
+
     robot, spheres = robot_and_spheres(args.robot)
     calibration: str | np.ndarray
     if args.calib:

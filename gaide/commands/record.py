@@ -5,13 +5,9 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from tqdm import tqdm
 
 from gaide.common import robot_and_spheres, seed
-from gaide.synthetic.record import record_scene
-from gaide.synthetic.scene import fixed_scene, hand_eye_scene
 from perception.frames import BagLayout
-from planning.checker import make_checker
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -38,6 +34,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_record(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from gaide.synthetic.record import record_scene
+    from gaide.synthetic.scene import fixed_scene, hand_eye_scene
+    from planning.checker import make_checker
+
     robot, spheres = robot_and_spheres(args.robot)
     rng = np.random.default_rng(args.seed)
     if args.frames < 1:

@@ -9,10 +9,6 @@ import numpy as np
 
 from gaide.common import print_table, robot_and_spheres
 from gaide_core.errors import ConfigError
-from planning.checker import make_checker
-from planning.plot import render_scene
-from planning.robot_model import load_robot
-from planning.spherize import SpherizeCfg, generate_spheres
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -53,6 +49,9 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 
 def cmd_spherize(args: argparse.Namespace) -> int:
+    from planning.robot_model import load_robot
+    from planning.spherize import SpherizeCfg, generate_spheres
+
     robot = load_robot(args.robot)
     spheres = generate_spheres(robot, SpherizeCfg(max_spheres=args.max_spheres))
     spheres.save(args.output)
@@ -72,6 +71,9 @@ def parse_configuration(text: str | None, robot) -> np.ndarray:  # type: ignore[
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    from planning.checker import make_checker
+    from planning.plot import render_scene
+
     if not str(args.output).lower().endswith(".png"):
         raise ConfigError(f"-o {args.output}: the picture is a PNG; name it *.png")
     robot, spheres = robot_and_spheres(args.robot)

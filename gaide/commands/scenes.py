@@ -8,17 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from gaide.common import print_table, robot_and_spheres, seed
-from gaide.pictures import render_meshes_png
-from planning.families import (
-    FAMILIES,
-    family_problems,
-    generate_problem,
-    parse_families,
-    split_seed,
-)
-from planning.primitives import primitive_mesh
-from planning.problem import save_problems
-from planning.scene_views import camera_view, posed_link_meshes, surface_cloud
+from planning.family_names import FAMILIES, parse_families, split_seed
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -46,6 +36,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    from gaide.pictures import render_meshes_png
+    from planning.families import generate_problem
+    from planning.primitives import primitive_mesh
+    from planning.scene_views import camera_view, posed_link_meshes, surface_cloud
+
     robot, spheres = robot_and_spheres(args.robot)
     seed = args.seed if args.seed is not None else split_seed("test", 0)
     problem = generate_problem(args.family, seed, robot, spheres)
@@ -80,6 +75,9 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
+    from planning.families import family_problems
+    from planning.problem import save_problems
+
     robot, spheres = robot_and_spheres(args.robot)
     problems = [
         p

@@ -11,7 +11,8 @@ from calibration.result import CalibrationResult, load_calibration
 from gaide_core.errors import PerceptionError
 from gaide_core.types import Array
 from perception.bag_reader import read_bag
-from perception.cloud import CloudCfg, SceneCloud, scene_cloud
+from perception.cloud import SceneCloud, scene_cloud
+from perception.cloud_cfg import CloudCfg
 from perception.frames import Frames
 from planning.checker import make_checker
 from planning.robot_model import RobotModel

@@ -3,7 +3,6 @@ exports -> simulation -> report, one stage per module, with its configuration, o
 rules and summary."""
 
 __all__ = [
-    "checks",
     "config",
     "config_io",
     "endpoints",

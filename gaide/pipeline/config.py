@@ -1,7 +1,11 @@
 """The settings of one ``gaide run``: frozen sections, each value checked on construction.
 
-The defaults live in one place, ``gaide/data/run.yaml`` (commented, every key present); the
-dataclasses here have no defaults of their own, so the file and the code cannot drift.
+The defaults live in one place: the dataclasses. The sections that configure a library stage
+extend that stage's own settings (perception's :class:`~perception.cloud_cfg.CloudCfg`,
+timing's :class:`~execution.timing_cfg.TimingCfg`, simulation's
+:class:`~execution.sim_cfg.SimCfg`), so ``gaide run``, ``gaide perceive``, ``gaide time`` and
+``gaide simulate`` start from the same values. ``gaide/data/run.yaml`` documents every key
+with its default, and a test holds it equal to ``RunCfg()``.
 :mod:`gaide.pipeline.config_io` merges defaults < a user's file < flags and builds a
 :class:`RunCfg`. Units: m, rad, s; poses in the robot's base frame.
 """
@@ -9,18 +13,27 @@ dataclasses here have no defaults of their own, so the file and the code cannot 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+import enum
+from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from execution.timing_cfg import MAX_RATE_HZ, TimingCfg, TimingMode
-from gaide.pipeline import checks
-from gaide_core.errors import ConfigError
+from execution.sim_cfg import SimCfg
+from execution.timing_cfg import TimingCfg
+from gaide_core import settings as checks
+from gaide_core.errors import ConfigError, GaideError
+from perception.cloud_cfg import CloudCfg
 from planning.checker import CHECKERS
 from planning.registry import CLASSICAL, COMPILED, HYBRID, NEURAL
 
 # auto: gaide-hybrid when its weights fit the robot, else the compiled RRT-Connect.
 PLANNERS = ("auto", *COMPILED, *CLASSICAL, *NEURAL, *HYBRID)
-EXPORT_FORMATS = ("csv", "json", "bag", "ros2")
+EXPORT_NAMES = {  # format -> the run's output of it
+    "csv": "trajectory.csv",
+    "json": "trajectory.json",
+    "bag": "trajectory.bag",
+    "ros2": "trajectory_ros2",  # a ROS2 bag is a folder
+}
+EXPORT_FORMATS = tuple(EXPORT_NAMES)
 
 
 def _set(obj: object, name: str, value: Any) -> None:
@@ -32,12 +45,12 @@ class CalibrationCfg:
     """Where ``T_base_cam`` comes from: a calibration file, a given pose, or the bag."""
 
     SECTION: ClassVar[str] = "calibration"
-    calib: str | None  # calibration YAML from `gaide calibrate`
-    T_base_cam: tuple[float, ...] | None  # x, y, z (m), qx, qy, qz, qw: color camera in base
-    mode: str  # fixed | hand-eye
-    target_pose: str | None  # fixed: target + its pose YAML (None: beside the bag)
-    target: str | None  # hand-eye: target spec
-    max_frames: int | None  # color frames used at most
+    calib: str | None = None  # calibration YAML from `gaide calibrate`
+    T_base_cam: tuple[float, ...] | None = None  # x, y, z (m), qx, qy, qz, qw: camera in base
+    mode: str = "fixed"  # fixed | hand-eye
+    target_pose: str | None = None  # fixed: target + its pose YAML (None: beside the bag)
+    target: str | None = None  # hand-eye: target spec
+    max_frames: int | None = None  # color frames used at most (None: all)
 
     def __post_init__(self) -> None:
         k = self.SECTION
@@ -55,47 +68,18 @@ class CalibrationCfg:
 
 
 @dataclass(frozen=True, kw_only=True)
-class PerceptionCfg:
-    """The scene cloud: crop box, depth range, downsampling, self-filter."""
+class PerceptionCfg(CloudCfg):
+    """The scene cloud (:class:`~perception.cloud_cfg.CloudCfg`: crop box, depth range,
+    downsampling, outliers) and the self-filter's inputs."""
 
     SECTION: ClassVar[str] = "perception"
-    voxel: float  # m
-    workspace_min: tuple[float, ...]  # m, base frame
-    workspace_max: tuple[float, ...]  # m, base frame
-    min_depth: float  # m
-    max_depth: float  # m
-    max_frames: int
-    self_filter: bool
-    joints: tuple[float, ...] | None  # rad, for the self-filter when the bag has none
-    default_extrinsics: bool  # a bag without depth-to-color extrinsics: assume the identity
+    self_filter: bool = True  # remove the robot's own points (needs joint states)
+    joints: tuple[float, ...] | None = None  # rad, for the self-filter when the bag has none
+    default_extrinsics: bool = False  # no depth-to-color extrinsics in the bag: assume identity
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         k = self.SECTION
-        _set(self, "voxel", checks.number(self.voxel, f"{k}.voxel", lo=0.0, hi=0.2, unit="m"))
-        lo = checks.vector(self.workspace_min, f"{k}.workspace_min", length=3, unit="m")
-        hi = checks.vector(self.workspace_max, f"{k}.workspace_max", length=3, unit="m")
-        if lo is None or hi is None:
-            raise ConfigError(f"{k}.workspace_min and {k}.workspace_max need 3 numbers each (m)")
-        if any(a >= b for a, b in zip(lo, hi, strict=True)):
-            raise ConfigError(
-                f"{k}.workspace_min {list(lo)} must be below {k}.workspace_max {list(hi)} on "
-                "every axis"
-            )
-        _set(self, "workspace_min", lo)
-        _set(self, "workspace_max", hi)
-        _set(
-            self,
-            "min_depth",
-            checks.number(self.min_depth, f"{k}.min_depth", lo=0.0, lo_open=True, unit="m"),
-        )
-        _set(
-            self,
-            "max_depth",
-            checks.number(
-                self.max_depth, f"{k}.max_depth", lo=self.min_depth, lo_open=True, unit="m"
-            ),
-        )
-        checks.integer(self.max_frames, f"{k}.max_frames", lo=1)
         checks.flag(self.self_filter, f"{k}.self_filter")
         checks.flag(self.default_extrinsics, f"{k}.default_extrinsics")
         _set(self, "joints", checks.vector(self.joints, f"{k}.joints", unit="rad"))
@@ -106,17 +90,17 @@ class PlanningCfg:
     """Start, goal and the planner (see ``run.yaml`` for the endpoint forms)."""
 
     SECTION: ClassVar[str] = "planning"
-    start: str
-    goal: str | None
-    planner: str
-    checkpoint: str | None
-    budget_s: float  # s per attempt
-    attempts: int
-    seed: int
-    ik_restarts: int
-    world_voxel: float  # m
-    torch_threads: int  # CPU threads for the network while planning; 0: torch's default
-    checker: str  # collision checker backend: compiled | numpy
+    start: str = "recorded"
+    goal: str | None = None  # required by a run
+    planner: str = "auto"
+    checkpoint: str | None = None  # None: the shipped weights
+    budget_s: float = 10.0  # s per attempt
+    attempts: int = 3
+    seed: int = 0
+    ik_restarts: int = 24
+    world_voxel: float = 0.01  # m
+    torch_threads: int = 1  # CPU threads for the network while planning; 0: torch's default
+    checker: str = "compiled"  # collision checker backend: compiled | numpy
 
     def __post_init__(self) -> None:
         k = self.SECTION
@@ -149,53 +133,10 @@ class PlanningCfg:
 
 
 @dataclass(frozen=True, kw_only=True)
-class TimingSection:
-    """Time parameterization, checked as configuration keys (:meth:`timing_cfg` gives the
-    execution layer's :class:`~execution.timing_cfg.TimingCfg`)."""
-
-    SECTION: ClassVar[str] = "timing"
-    mode: str  # blended | exact
-    rate_hz: float  # Hz
-    velocity_scale: float
-    acceleration_scale: float
-    jerk_scale: float
-    max_velocity: tuple[float, ...] | None  # rad/s per joint
-    max_acceleration: tuple[float, ...] | None  # rad/s^2 per joint
-    max_jerk: tuple[float, ...] | None  # rad/s^3 per joint
-    shortcut: bool
-
-    def __post_init__(self) -> None:
-        k = self.SECTION
-        checks.choice(self.mode, f"{k}.mode", ("blended", "exact"))
-        _set(
-            self,
-            "rate_hz",
-            checks.number(self.rate_hz, f"{k}.rate_hz", lo=1.0, hi=MAX_RATE_HZ, unit="Hz"),
-        )
-        for name in ("velocity_scale", "acceleration_scale", "jerk_scale"):
-            scale = checks.number(getattr(self, name), f"{k}.{name}", lo=0.0, hi=1.0, lo_open=True)
-            _set(self, name, scale)
-        for name, unit in (
-            ("max_velocity", "rad/s"),
-            ("max_acceleration", "rad/s^2"),
-            ("max_jerk", "rad/s^3"),
-        ):
-            value = checks.vector(getattr(self, name), f"{k}.{name}", positive=True, unit=unit)
-            _set(self, name, value)
-        checks.flag(self.shortcut, f"{k}.shortcut")
-
-    def timing_cfg(self) -> TimingCfg:
-        """The execution layer's settings, field for field (the blend search at its
-        defaults)."""
-        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        return TimingCfg(**{**fields, "mode": TimingMode.parse(self.mode)})
-
-
-@dataclass(frozen=True, kw_only=True)
 class ExportCfg:
     SECTION: ClassVar[str] = "export"
-    formats: tuple[str, ...]  # of EXPORT_FORMATS
-    storage: str  # ROS2 bag storage
+    formats: tuple[str, ...] = ("csv", "json", "bag")  # of EXPORT_FORMATS
+    storage: str = "sqlite3"  # ROS2 bag storage
 
     def __post_init__(self) -> None:
         k = self.SECTION
@@ -210,26 +151,22 @@ class ExportCfg:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SimulateCfg:
+class SimulateCfg(SimCfg):
+    """The simulator (:class:`~execution.sim_cfg.SimCfg`) and what fails a run. A run holds
+    the goal a little and models the cloud finer than the library's defaults."""
+
     SECTION: ClassVar[str] = "simulate"
-    enabled: bool
-    settle_s: float  # s
-    voxel_m: float  # m
-    crop_m: float  # m
-    max_tracking_rms_rad: float  # rad
-    fail_on_contact: bool
+    settle_s: float = 0.2  # s, hold the goal after the trajectory's end
+    voxel_m: float = 0.01  # m, the cloud as PyBullet boxes of this size
+    enabled: bool = True
+    crop_m: float = 0.15  # m, only cloud points this near the moving robot become boxes
+    max_tracking_rms_rad: float = 0.01  # rad, a larger RMS tracking error fails the run
+    fail_on_contact: bool = False  # a simulated contact fails the run (else a warning)
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         k = self.SECTION
         checks.flag(self.enabled, f"{k}.enabled")
-        _set(
-            self,
-            "settle_s",
-            checks.number(self.settle_s, f"{k}.settle_s", lo=0.0, hi=60.0, unit="s"),
-        )
-        _set(
-            self, "voxel_m", checks.number(self.voxel_m, f"{k}.voxel_m", lo=0.005, hi=0.2, unit="m")
-        )
         _set(self, "crop_m", checks.number(self.crop_m, f"{k}.crop_m", lo=0.0, hi=10.0, unit="m"))
         _set(
             self,
@@ -248,8 +185,8 @@ class SimulateCfg:
 @dataclass(frozen=True, kw_only=True)
 class ReportCfg:
     SECTION: ClassVar[str] = "report"
-    enabled: bool
-    poses: int  # robot poses drawn along the path
+    enabled: bool = True
+    poses: int = 6  # robot poses drawn along the path
 
     def __post_init__(self) -> None:
         checks.flag(self.enabled, "report.enabled")
@@ -260,7 +197,7 @@ SECTIONS: dict[str, type] = {
     "calibration": CalibrationCfg,
     "perception": PerceptionCfg,
     "planning": PlanningCfg,
-    "timing": TimingSection,
+    "timing": TimingCfg,
     "export": ExportCfg,
     "simulate": SimulateCfg,
     "report": ReportCfg,
@@ -271,16 +208,16 @@ SECTIONS: dict[str, type] = {
 class RunCfg:
     """Everything ``gaide run`` needs; build it with :func:`gaide.pipeline.config_io.load_cfg`."""
 
-    bag: str | None  # the recording
-    out: str  # output folder
-    robot: str | None  # robot config YAML (None: the shipped UR5)
-    calibration: CalibrationCfg
-    perception: PerceptionCfg
-    planning: PlanningCfg
-    timing: TimingSection
-    export: ExportCfg
-    simulate: SimulateCfg
-    report: ReportCfg
+    bag: str | None = None  # the recording
+    out: str = "out/run"  # output folder
+    robot: str | None = None  # robot config YAML (None: the shipped UR5)
+    calibration: CalibrationCfg = field(default_factory=CalibrationCfg)
+    perception: PerceptionCfg = field(default_factory=PerceptionCfg)
+    planning: PlanningCfg = field(default_factory=PlanningCfg)
+    timing: TimingCfg = field(default_factory=TimingCfg)
+    export: ExportCfg = field(default_factory=ExportCfg)
+    simulate: SimulateCfg = field(default_factory=SimulateCfg)
+    report: ReportCfg = field(default_factory=ReportCfg)
 
     def __post_init__(self) -> None:
         _set(self, "bag", checks.text(self.bag, "bag"))
@@ -295,16 +232,23 @@ class RunCfg:
             body = raw.get(name)
             if not isinstance(body, dict):
                 raise ConfigError(f"{name} must be a mapping of settings, got {body!r}")
+            unknown = sorted(set(body) - {f.name for f in dataclasses.fields(cls)})
+            if unknown:
+                raise ConfigError(f"{name}: unknown keys {unknown}; valid: {field_names(cls)}")
             try:
                 sections[name] = cls(**body)
-            except TypeError as err:  # a key missing: only when built outside config_io
-                raise ConfigError(f"{name}: {err}") from err
+            except ConfigError:
+                raise
+            except GaideError as err:  # a library stage's settings: name the section
+                raise ConfigError(f"{name}.{err}") from err
         return RunCfg(bag=raw.get("bag"), out=raw.get("out"), robot=raw.get("robot"), **sections)  # type: ignore[arg-type]
 
     def as_dict(self) -> dict[str, Any]:
         """Plain YAML-ready values, in ``run.yaml``'s order."""
 
         def plain(v: Any) -> Any:
+            if isinstance(v, enum.Enum):
+                return v.value
             return list(v) if isinstance(v, tuple) else v
 
         out: dict[str, Any] = {"bag": self.bag, "out": self.out, "robot": self.robot}
@@ -314,3 +258,8 @@ class RunCfg:
                 f.name: plain(getattr(section, f.name)) for f in dataclasses.fields(section)
             }
         return out
+
+
+def field_names(cls: type) -> list[str]:
+    """The settings of a section, in declaration order."""
+    return [f.name for f in dataclasses.fields(cls)]

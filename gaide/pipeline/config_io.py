@@ -43,7 +43,8 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
 
 
 def default_dict() -> dict[str, Any]:
-    return read_yaml(DEFAULTS)
+    """Every setting at its default (the config classes'; ``run.yaml`` documents them)."""
+    return RunCfg().as_dict()
 
 
 def merge(base: dict[str, Any], layer: dict[str, Any], where: str) -> dict[str, Any]:

@@ -102,7 +102,7 @@ def parse_endpoint(text: str, robot: RobotModel, what: str) -> Endpoint:
             f"{what} '{spec}' is not a named configuration of the robot "
             f"{sorted(named) or '(none)'}; give {FORMS}"
         )
-    q = robot.configuration_from_text(spec, what)
+    q = robot.configuration_from_text(spec, what, ConfigError)
     return Endpoint(what, spec, EndpointKind.JOINTS, joints=q)
 
 

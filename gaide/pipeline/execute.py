@@ -12,7 +12,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from execution.trajectory import TimedTrajectory
-from gaide.pipeline.config import RunCfg
+from gaide.pipeline.config import EXPORT_NAMES, RunCfg
 from gaide.pipeline.motion import Planned
 from gaide.pipeline.runner import StageRecord, StageRunner
 from gaide.pipeline.sense import Sensed
@@ -20,12 +20,6 @@ from gaide_core.errors import ExecutionError
 from gaide_core.types import Array
 
 #: Export format -> output name in the run folder.
-EXPORT_NAMES = {
-    "csv": "trajectory.csv",
-    "json": "trajectory.json",
-    "bag": "trajectory.bag",
-    "ros2": "trajectory_ros2",  # a ROS2 bag is a folder
-}
 
 
 def export_stage(
@@ -71,7 +65,7 @@ def simulation_stage(
     from execution.compare import compare
     from execution.export import write_log
     from execution.plots import comparison_png
-    from execution.simulate import SimCfg, SimStatus, simulate
+    from execution.simulate import SimStatus, simulate
 
     s = cfg.simulate
     robot = planned.checker.robot
@@ -82,7 +76,7 @@ def simulation_stage(
         traj,
         robot,
         cloud=cloud if len(cloud) else None,
-        cfg=SimCfg(settle_s=s.settle_s, voxel_m=s.voxel_m),
+        cfg=s,
         start_ns=time.time_ns(),
         checker=planned.checker,
     )

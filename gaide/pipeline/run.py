@@ -12,21 +12,16 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from execution.parameterizer import TimeParameterizer
-from gaide.pipeline.config import RunCfg
+from gaide.pipeline.config import EXPORT_NAMES, RunCfg
 from gaide.pipeline.config_io import dump_cfg
-from gaide.pipeline.execute import EXPORT_NAMES, export_stage, simulation_stage
-from gaide.pipeline.motion import planning_stage, timing_stage
 from gaide.pipeline.report import report_stage
 from gaide.pipeline.runner import StageHooks, StageRunner, claim_folder, folder_lock
-from gaide.pipeline.sense import (
-    calibration_stage,
-    given_camera,
-    perception_stage,
-    setup_stage,
-)
-from gaide_core.errors import GaideError
+from gaide_core.errors import BagError, ConfigError, GaideError
+
+if TYPE_CHECKING:
+    from execution.parameterizer import TimeParameterizer
 
 log = logging.getLogger(__name__)
 
@@ -46,7 +41,7 @@ def ruckig_parameterizer(cfg: RunCfg) -> TimeParameterizer:
     """The configured time parameterization (Ruckig)."""
     from execution.ruckig_timing import RuckigParameterizer
 
-    return RuckigParameterizer(cfg.timing.timing_cfg())
+    return RuckigParameterizer(cfg.timing)
 
 
 def run_pipeline(
@@ -103,8 +98,33 @@ OUTPUTS = (
 )
 
 
+def check_inputs(cfg: RunCfg) -> None:
+    """What the settings alone can show wrong (a bag that is not there, no goal): said
+    before the stages load their libraries."""
+    if cfg.bag is None:
+        raise ConfigError("no bag given: `gaide run BAG ...` (or bag: in the config file)")
+    if not Path(cfg.bag).exists():
+        raise BagError(f"bag {cfg.bag} does not exist")
+    if cfg.planning.goal is None:
+        raise ConfigError(
+            "no goal given: --goal NAME, --goal a,b,c,d,e,f (rad) or --goal xyz:x,y,z (m)"
+        )
+
+
 def _stages(cfg: RunCfg, runner: StageRunner, parameterizer: TimeParameterizer | None) -> None:
     with runner.stage("setup") as rec:
+        check_inputs(cfg)
+        # The stages' modules load Open3D, OpenCV, Pinocchio, Ruckig: only once the inputs
+        # are known to be there.
+        from gaide.pipeline.execute import export_stage, simulation_stage
+        from gaide.pipeline.motion import planning_stage, timing_stage
+        from gaide.pipeline.sense import (
+            calibration_stage,
+            given_camera,
+            perception_stage,
+            setup_stage,
+        )
+
         setup = setup_stage(cfg, rec)
     if cfg.calibration.T_base_cam is not None:
         camera = given_camera(cfg)

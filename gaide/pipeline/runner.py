@@ -23,15 +23,14 @@ import enum
 import json
 import math
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 
-from execution.staging import staged_outputs, verify_file
-from gaide_core.atomic import write_bytes_atomic
+from gaide_core.atomic import Content, write_bytes_atomic, write_files_atomic
 from gaide_core.errors import (
     BagError,
     CalibrationError,
@@ -58,9 +57,6 @@ STAGE_ERRORS: dict[str, type[GaideError]] = {
 }
 #: Errors that keep their class whichever stage raised them.
 OWN_CODE: tuple[type[GaideError], ...] = (ConfigError, BagError, ModelError)
-
-#: What a stage writes: bytes, or a function writing the file at the path it is given.
-Output = bytes | Callable[[Path], None]
 
 
 class StageStatus(enum.Enum):
@@ -180,17 +176,13 @@ class StageRunner:
             self.hooks.started(name, names.index(name), len(names))
             self.hooks.finished(record)
 
-    def commit(self, record: StageRecord, files: Mapping[str, Output]) -> list[Path]:
-        """Write ``files`` (names inside the output folder) all or none, and record them."""
-        targets = [self.out / name for name in files]
-        with staged_outputs(targets, STAGE_ERRORS[record.name]) as staged:
-            for tmp, content in zip(staged, files.values(), strict=True):
-                if isinstance(content, bytes):
-                    tmp.write_bytes(content)
-                    verify_file(tmp, len(content), STAGE_ERRORS[record.name])
-                else:
-                    content(tmp)
-                    verify_file(tmp, None, STAGE_ERRORS[record.name])
+    def commit(self, record: StageRecord, files: Mapping[str, Content]) -> list[Path]:
+        """Write ``files`` (names inside the output folder: bytes, or a function writing the
+        file at the path it is given) all or none, and record them."""
+        targets = write_files_atomic(
+            [(self.out / name, content) for name, content in files.items()],
+            STAGE_ERRORS[record.name],
+        )
         record.outputs.extend(str(t) for t in targets)
         self.write_summary()  # the files are listed as soon as they exist
         return targets

@@ -22,10 +22,10 @@ from gaide.pipeline import figures
 from gaide.pipeline.config import RunCfg
 from gaide.pipeline.endpoints import Endpoint, parse_endpoint
 from gaide.pipeline.runner import StageRecord, StageRunner
-from gaide_core.errors import BagError, CalibrationError, ConfigError, ModelError
+from gaide_core.errors import CalibrationError, ConfigError, ModelError
 from gaide_core.transforms import from_xyz_quat, to_xyz_quat
 from gaide_core.types import Array
-from perception.cloud import CloudCfg, SceneCloud, save_ply
+from perception.cloud import SceneCloud, save_ply
 from planning.robot_model import RobotModel
 from planning.robot_setup import robot_and_spheres
 from planning.sphere_model import SphereModel
@@ -56,16 +56,10 @@ class Sensed:
 
 
 def setup_stage(cfg: RunCfg, record: StageRecord) -> Setup:
-    """Load the robot; check what can be checked before the long stages: a bag, a goal,
-    endpoints that parse, the neural planner's weights."""
-    if cfg.bag is None:
-        raise ConfigError("no bag given: `gaide run BAG ...` (or bag: in the config file)")
-    if not Path(cfg.bag).exists():
-        raise BagError(f"bag {cfg.bag} does not exist")
-    if cfg.planning.goal is None:
-        raise ConfigError(
-            "no goal given: --goal NAME, --goal a,b,c,d,e,f (rad) or --goal xyz:x,y,z (m)"
-        )
+    """Load the robot; check what can be checked before the long stages (after
+    :func:`gaide.pipeline.run.check_inputs`): endpoints that parse, the neural planner's
+    weights."""
+    assert cfg.bag is not None and cfg.planning.goal is not None  # run.check_inputs
     robot, spheres = robot_and_spheres(cfg.robot)
     start = parse_endpoint(cfg.planning.start, robot, "start")
     goal = parse_endpoint(cfg.planning.goal, robot, "goal")
@@ -212,14 +206,6 @@ def perception_stage(
 
     p = cfg.perception
     assert cfg.bag is not None  # checked by setup_stage
-    cloud_cfg = CloudCfg(
-        workspace_min=p.workspace_min,  # type: ignore[arg-type]
-        workspace_max=p.workspace_max,  # type: ignore[arg-type]
-        min_depth=p.min_depth,
-        max_depth=p.max_depth,
-        voxel=p.voxel,
-        max_frames=p.max_frames,
-    )
     joints = None if p.joints is None else np.asarray(p.joints)
     calibration = camera.result if camera.result is not None else camera.T_base_cam
     cloud, _, q = perceive_bag(
@@ -227,7 +213,7 @@ def perception_stage(
         calibration,
         setup.robot,
         setup.spheres,
-        cloud_cfg,
+        p,
         joints=joints,
         self_filter=p.self_filter,
         default_extrinsics=p.default_extrinsics,

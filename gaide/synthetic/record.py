@@ -13,12 +13,14 @@ import yaml
 
 from gaide.synthetic.raycast import RaycastScene, Texture
 from gaide.synthetic.scene import SyntheticScene, obstacle_meshes, target_plate
-from gaide_core.errors import ConfigError
+from gaide_core.atomic import write_bytes_atomic
+from gaide_core.errors import BagError, ConfigError
+from gaide_core.joints import JointStates
 from gaide_core.text_io import load_yaml
 from gaide_core.transforms import to_xyz_quat
 from gaide_core.types import Array
 from perception.bag_writer import write_bag
-from perception.frames import BagLayout, Frames, ImageStream, JointStates
+from perception.frames import BagLayout, Frames, ImageStream
 from planning.robot_model import RobotModel
 
 log = logging.getLogger(__name__)
@@ -84,7 +86,9 @@ def record_scene(
         color=ImageStream(cam.color, tuple(colors), stamps, "camera_color_optical_frame"),
         depth_units=cam.noise.depth_units,
         T_color_depth=cam.T_color_depth,
-        joint_states=JointStates(robot.joint_names, stamps, np.asarray(scene.joint_states)),
+        joint_states=JointStates.from_stamps(
+            robot.joint_names, stamps, np.asarray(scene.joint_states, float), error=BagError
+        ),
     )
     bag = write_bag(path, frames, layout=layout, ros_version=ros_version, storage=storage)
     truth = ground_truth_path(bag)
@@ -99,9 +103,7 @@ def record_scene(
 
 
 def _write_yaml(path: Path, data: dict[str, Any]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(yaml.safe_dump(data, sort_keys=False))
-    tmp.replace(path)
+    write_bytes_atomic(path, yaml.safe_dump(data, sort_keys=False).encode(), BagError)
 
 
 def target_pose_path(bag: str | Path) -> Path:

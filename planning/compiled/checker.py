@@ -15,7 +15,7 @@ from gaide_core.errors import PlanningError
 from gaide_core.types import Array
 from planning.collision import Mask, SphereCollisionChecker
 from planning.compiled import validity
-from planning.compiled.tables import checker_tables
+from planning.compiled.tables import Tables, checker_tables
 
 
 class CompiledChecker(SphereCollisionChecker):
@@ -29,6 +29,10 @@ class CompiledChecker(SphereCollisionChecker):
         self.tables = checker_tables(self)
         # The kernels' leading arguments: ints, floats, the cloud's lattice.
         self._tables = self.tables.args()
+
+    def kernel_tables(self) -> Tables:
+        """The tables exported once, at construction."""
+        return self.tables
 
     def config_valid(self, Q: Array) -> Mask:
         Q = self._batch(Q)

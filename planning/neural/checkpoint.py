@@ -13,7 +13,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from gaide_core.atomic import write_bytes_atomic
+from gaide_core.atomic import write_files_atomic
 from gaide_core.errors import ModelError
 from planning.neural.embodiment import Embodiment
 from planning.neural.models import MODEL_KINDS, ModelCfg, build_model
@@ -66,8 +66,8 @@ class Checkpoint:
 
 
 def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> str:
-    """Write the checkpoint and its card (``<path>.card.json``) atomically; returns the
-    checkpoint's sha256."""
+    """Write the checkpoint and its card (``<path>.card.json``) atomically, both or neither
+    (the card holds the checkpoint's sha256); returns that sha256."""
     buf = io.BytesIO()
     torch.save(
         {
@@ -85,9 +85,10 @@ def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> str:
     )
     data = buf.getvalue()
     digest = hashlib.sha256(data).hexdigest()
-    write_bytes_atomic(path, data, ModelError)
     card = dict(ckpt.card, sha256=digest, kind=ckpt.kind, step=ckpt.step)
-    write_bytes_atomic(card_path(path), json.dumps(card, indent=1).encode(), ModelError)
+    write_files_atomic(
+        [(path, data), (card_path(path), json.dumps(card, indent=1).encode())], ModelError
+    )
     return digest
 
 

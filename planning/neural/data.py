@@ -40,7 +40,8 @@ import numpy.typing as npt
 
 from gaide_core.errors import GaideError, ModelError
 from planning.checker import CHECKERS, make_checker
-from planning.families import CATEGORIES, FAMILIES, generate_problem, split_seed
+from planning.families import generate_problem
+from planning.family_names import CATEGORIES, FAMILIES, split_seed
 from planning.oracle import OracleCfg, oracle_path
 from planning.robot_model import RobotModel
 from planning.scene_views import surface_cloud

@@ -4,14 +4,14 @@ import numpy as np
 import pytest
 
 from execution.compare import CompareCfg, compare
-from execution.joint_log import JointLog
 from execution.trajectory import TimedTrajectory
 from gaide_core.errors import ExecutionError
+from gaide_core.joints import JointStates
 
 
 def _log_of(
     traj: TimedTrajectory, delay: float, rate: float, *, lead: float = 0.5, noise: float = 1e-4
-) -> JointLog:
+) -> JointStates:
     """What a controller running ``traj`` late by ``delay`` s logs at ``rate`` Hz, starting
     ``lead`` s before the plan's start, with position noise."""
     t = np.arange(-lead, traj.duration + 1.0, 1.0 / rate)
@@ -20,7 +20,7 @@ def _log_of(
     # The log names its joints in another order and has one more, and absolute stamps.
     names = (*reversed(traj.joint_names), "gripper_joint")
     q = np.hstack([q[:, ::-1], np.zeros((len(t), 1))])
-    return JointLog(names=names, t=t + lead, q=q, start_ns=1_700_000_000 * 10**9)
+    return JointStates(names=names, t=t + lead, q=q, start_ns=1_700_000_000 * 10**9)
 
 
 @pytest.mark.parametrize("rate", [100.0, 250.0, 500.0])
@@ -39,7 +39,7 @@ def test_tracking_error_is_measured_after_alignment(small_traj: TimedTrajectory)
     log = _log_of(small_traj, 0.05, 500.0, noise=0.0)
     off = log.q.copy()
     off[:, 0] += 0.01  # the last joint of the trajectory (reversed order), 10 mrad off
-    biased = JointLog(names=log.names, t=log.t, q=off, start_ns=log.start_ns)
+    biased = JointStates(names=log.names, t=log.t, q=off, start_ns=log.start_ns)
     res = compare(small_traj, biased, CompareCfg(expected_start_s=0.5))
     assert res.delay_s == pytest.approx(0.05, abs=0.01)
     assert res.rms_rad[-1] == pytest.approx(0.01, abs=1e-3)
@@ -49,8 +49,11 @@ def test_tracking_error_is_measured_after_alignment(small_traj: TimedTrajectory)
 def test_a_log_without_the_plans_joints_is_refused(small_traj: TimedTrajectory) -> None:
     log = _log_of(small_traj, 0.0, 100.0)
     names = tuple(n.replace("elbow_joint", "elbow") for n in log.names)
-    renamed = JointLog(names=names, t=log.t, q=log.q)
-    with pytest.raises(ExecutionError, match=r"lacks joints \['elbow_joint'\].*'elbow'"):
+    renamed = JointStates(names=names, t=log.t, q=log.q)
+    with pytest.raises(
+        ExecutionError,
+        match=r"does not fit the trajectory: .*lack joints \['elbow_joint'\].*'elbow'",
+    ):
         compare(small_traj, renamed)
 
 
@@ -62,6 +65,12 @@ def test_a_log_with_no_overlap_in_time_is_refused(small_traj: TimedTrajectory) -
 
 def test_a_log_that_does_not_move_is_refused(small_traj: TimedTrajectory) -> None:
     t = np.arange(0.0, 2.0, 0.01)
-    still = JointLog(names=small_traj.joint_names, t=t, q=np.tile(small_traj.q[0], (len(t), 1)))
+    still = JointStates(names=small_traj.joint_names, t=t, q=np.tile(small_traj.q[0], (len(t), 1)))
     with pytest.raises(ExecutionError, match="no motion"):
         compare(small_traj, still)
+
+
+def test_a_log_of_one_sample_is_refused(small_traj: TimedTrajectory) -> None:
+    one = JointStates(names=small_traj.joint_names, t=np.zeros(1), q=small_traj.q[:1])
+    with pytest.raises(ExecutionError, match=">= 2 samples"):
+        compare(small_traj, one)

@@ -8,11 +8,11 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from execution.export import read_log, write_log, write_trajectory
-from execution.joint_log import JointLog
 from execution.ros_bags import read_trajectory_bag
 from execution.trajectory import TimedTrajectory
 from execution.trajectory_io import read_trajectory
 from gaide_core.errors import ExecutionError
+from gaide_core.joints import JointStates
 from planning.robot_model import RobotModel
 
 
@@ -74,7 +74,7 @@ def test_bags_hold_one_joint_trajectory_with_the_urdf_joint_names(
 
 
 def test_joint_state_logs_round_trip(small_traj: TimedTrajectory, tmp_path: Path) -> None:
-    log = JointLog(
+    log = JointStates(
         names=small_traj.joint_names,
         t=small_traj.t,
         q=small_traj.q,

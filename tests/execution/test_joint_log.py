@@ -5,8 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from execution.joint_log import JointLog, read_log_csv
+from execution.joint_log import check_log, read_log_csv
 from gaide_core.errors import ExecutionError
+from gaide_core.joints import JointStates
 
 ROSTOPIC = """%time,field.header.seq,field.header.stamp,field.header.frame_id,field.name0,field.name1,field.position0,field.position1,field.velocity0,field.velocity1,field.effort0,field.effort1
 1700000000100000000,1,1700000000100000000,,a,b,0.2,1.0,0.0,0.0,0,0
@@ -28,9 +29,14 @@ def test_rostopic_echo_csv_is_read_in_time_order(tmp_path: Path) -> None:
 
 
 def test_select_reorders_and_names_missing_joints() -> None:
-    log = JointLog(names=("a", "b", "c"), t=np.arange(3.0), q=np.arange(9.0).reshape(3, 3))
+    log = JointStates(
+        names=("a", "b", "c"),
+        t=np.arange(3.0),
+        q=np.arange(9.0).reshape(3, 3),
+        error=ExecutionError,
+    )
     np.testing.assert_array_equal(log.select(("c", "a")).q, [[2, 0], [5, 3], [8, 6]])
-    with pytest.raises(ExecutionError, match=r"lacks joints \['d'\].*\['b', 'c'\]"):
+    with pytest.raises(ExecutionError, match=r"lack joints \['d'\].*\['b', 'c'\]"):
         log.select(("a", "d"))
 
 
@@ -40,4 +46,10 @@ def test_a_bad_log_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ExecutionError, match="first column must be 't'"):
         read_log_csv(src)
     with pytest.raises(ExecutionError, match="repeat"):
-        JointLog(names=("a", "a"), t=np.arange(2.0), q=np.zeros((2, 2)))
+        JointStates(names=("a", "a"), t=np.arange(2.0), q=np.zeros((2, 2)), error=ExecutionError)
+    src.write_text("t,a_pos\n0,1\n")
+    with pytest.raises(ExecutionError, match=r"log.csv: a joint log needs >= 2 samples"):
+        read_log_csv(src)
+    one = JointStates(names=("a",), t=np.zeros(1), q=np.zeros((1, 1)), error=ExecutionError)
+    with pytest.raises(ExecutionError, match=">= 2 samples to compare, got 1"):
+        check_log(one)

@@ -3,7 +3,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from execution.simulate import SimCfg, SimStatus, simulate
+from execution.sim_cfg import SimCfg
+from execution.simulate import SimStatus, simulate
 from execution.trajectory import TimedTrajectory
 from gaide_core.errors import ExecutionError
 from planning.collision import CollisionChecker

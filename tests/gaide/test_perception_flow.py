@@ -171,7 +171,7 @@ def test_real_recording_gives_a_cloud_with_a_given_camera_pose(
     bag = shared_data("realsense/librealsense_single_depth_color_640x480.bag")
     # camera 1 m above the base looking straight ahead along base x (no tag in that bag)
     T = np.array([[0, 0, 1.0, 0], [-1.0, 0, 0, 0], [0, -1.0, 0, 1.0], [0, 0, 0, 1]])
-    from perception.cloud import CloudCfg
+    from perception.cloud_cfg import CloudCfg
 
     cfg = CloudCfg(workspace_min=(-4, -4, -4), workspace_max=(4, 4, 4))
     cloud, _, q = perceive_bag(bag, T, robot, spheres, cfg, self_filter=False)

@@ -237,7 +237,7 @@ def test_settings_precedence_defaults_then_file_then_flags(
     again.write_text(capsys.readouterr().out)
     assert load_cfg([again]) == load_cfg([cfg_file])
     # the timing section reaches the execution layer field for field
-    timing = load_cfg([cfg_file], [("timing.mode", "exact")]).timing.timing_cfg()
+    timing = load_cfg([cfg_file], [("timing.mode", "exact")]).timing
     assert timing.rate_hz == 250.0 and timing.mode.value == "exact"
 
 

@@ -9,10 +9,14 @@ from typing import Any
 import numpy as np
 
 from gaide_core.camera import Intrinsics
+from gaide_core.errors import BagError
+from gaide_core.joints import JointStates
+from gaide_core.ros import BagMessage
+from gaide_core.ros import write_bag as write_ros_bag
 from gaide_core.transforms import from_xyz_rpy
 from gaide_core.types import Array
-from perception.bag_builder import MessageBuilder, serialize
-from perception.frames import BagLayout, Frames, ImageStream, JointStates
+from perception.bag_builder import MessageBuilder
+from perception.frames import BagLayout, Frames, ImageStream
 
 WIDTH, HEIGHT = 64, 48
 T0_NS = 1_700_000_000_123_456_789  # a realistic wall-clock stamp (ns)
@@ -87,10 +91,11 @@ def make_frames(
     joint_states = None
     if joints:
         m = 7
-        joint_states = JointStates(
-            names=JOINTS,
-            stamps_ns=T0_NS - 5_000_000 + 10_000_000 * np.arange(m, dtype=np.int64),
-            positions=rng.uniform(-np.pi, np.pi, (m, len(JOINTS))),
+        joint_states = JointStates.from_stamps(
+            JOINTS,
+            T0_NS - 5_000_000 + 10_000_000 * np.arange(m, dtype=np.int64),
+            rng.uniform(-np.pi, np.pi, (m, len(JOINTS))),
+            error=BagError,
         )
     return Frames(
         source=Path("synthetic"),
@@ -111,26 +116,8 @@ def write_raw_bag(
 ) -> Path:
     """Write (topic, msgtype, log time ns, message) as they are: for layouts the writer
     does not make (missing topics, several cameras, realsense2_camera_msgs/Extrinsics)."""
-    from rosbags.rosbag1 import Writer as Writer1
-    from rosbags.rosbag2 import StoragePlugin
-    from rosbags.rosbag2 import Writer as Writer2
-
-    ts = builder.typestore
-    connections: dict[str, Any] = {}
-    if builder.ros_version == 1:
-        with Writer1(path) as w1:
-            for topic, msgtype, stamp, msg in messages:
-                if topic not in connections:
-                    connections[topic] = w1.add_connection(topic, msgtype, typestore=ts)
-                w1.write(connections[topic], stamp, serialize(ts, 1, msg, msgtype))
-        return path
-    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-    with Writer2(path, version=Writer2.VERSION_LATEST, storage_plugin=plugin) as w2:
-        for topic, msgtype, stamp, msg in messages:
-            if topic not in connections:
-                connections[topic] = w2.add_connection(topic, msgtype, typestore=ts)
-            w2.write(connections[topic], stamp, serialize(ts, 2, msg, msgtype))
-    return path
+    bag = [BagMessage(topic, msgtype, stamp, msg) for topic, msgtype, stamp, msg in messages]
+    return write_ros_bag(path, bag, builder, storage=storage, error=BagError)
 
 
 def assert_frames_equal(got: Frames, want: Frames, *, aligned: bool = False) -> None:
@@ -172,4 +159,4 @@ def assert_frames_equal(got: Frames, want: Frames, *, aligned: bool = False) -> 
         assert got.joint_states is not None
         assert got.joint_states.names == want.joint_states.names
         np.testing.assert_array_equal(got.joint_states.stamps_ns, want.joint_states.stamps_ns)
-        np.testing.assert_array_equal(got.joint_states.positions, want.joint_states.positions)
+        np.testing.assert_array_equal(got.joint_states.q, want.joint_states.q)

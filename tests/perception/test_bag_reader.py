@@ -378,7 +378,7 @@ def test_joint_states_keep_the_first_message_joint_order(tmp_path: Path) -> None
     assert got.joint_states is not None
     assert got.joint_states.names == ("a", "b")
     np.testing.assert_array_equal(got.joint_states.stamps_ns, [1, 7])
-    np.testing.assert_array_equal(got.joint_states.positions, [[1.0, 2.0], [3.0, 4.0]])
+    np.testing.assert_array_equal(got.joint_states.q, [[1.0, 2.0], [3.0, 4.0]])
     np.testing.assert_array_equal(got.joint_states.at(6), [3.0, 4.0])
 
 

@@ -15,9 +15,8 @@ from hypothesis.extra import numpy as hnp
 from rosbags.rosbag1 import Reader
 from rosbags.rosbag1.reader import decompressors
 
-import perception.bag_builder as bag_builder
-import perception.bag_writer as bag_writer
 from gaide_core.errors import BagError
+from gaide_core.ros import Messages
 from perception.bag_reader import read_bag
 from perception.bag_writer import write_bag
 from perception.frames import BagLayout, Frames, ImageStream
@@ -216,15 +215,15 @@ def test_failure_mid_write_leaves_nothing(
     storage: str,
 ) -> None:
     calls = {"n": 0}
-    real = bag_builder.serialize
+    real = Messages.serialize
 
-    def failing(typestore: Any, ros_version: int, msg: Any, msgtype: str) -> Any:
+    def failing(self: Messages, msg: Any, msgtype: str) -> Any:
         calls["n"] += 1
         if calls["n"] > 5:
             raise OSError("No space left on device")
-        return real(typestore, ros_version, msg, msgtype)
+        return real(self, msg, msgtype)
 
-    monkeypatch.setattr(bag_writer, "serialize", failing)
+    monkeypatch.setattr(Messages, "serialize", failing)
     path = bag_path(tmp_path / "out", "x", ros)
     with pytest.raises(BagError, match="No space left on device"):
         write_bag(path, make_frames(rng), layout=BagLayout.SDK, ros_version=ros, storage=storage)

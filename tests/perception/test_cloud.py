@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 from gaide_core.camera import Intrinsics
 from gaide_core.errors import PerceptionError
 from gaide_core.transforms import from_xyz_rpy
-from perception.cloud import CloudCfg, load_ply, remove_inside_spheres, save_ply, scene_cloud
+from perception.cloud import load_ply, remove_inside_spheres, save_ply, scene_cloud
+from perception.cloud_cfg import CloudCfg
 from perception.depth import Deprojector, fuse_depth, project
 from perception.frames import BagLayout, Frames, ImageStream
 
@@ -118,7 +119,7 @@ def test_scene_cloud_bad_inputs(tmp_path: Path) -> None:
         scene_cloud(replace(frames, depth_units=None), T_base_cam)
     with pytest.raises(PerceptionError, match="no depth frames"):
         scene_cloud(replace(frames, depth=None), T_base_cam)
-    with pytest.raises(PerceptionError, match="min < max"):
+    with pytest.raises(PerceptionError, match="must be below workspace_max"):
         CloudCfg(workspace_min=(1, 0, 0), workspace_max=(0, 1, 1))
     with pytest.raises(PerceptionError, match="does not exist"):
         load_ply(str(tmp_path / "none.ply"))

@@ -152,7 +152,8 @@ def test_primitive_world_round_trip(rng: np.random.Generator) -> None:
 def test_the_coarse_first_pass_never_changes_the_answer(
     robot: RobotModel, spheres: SphereModel, rng: np.random.Generator
 ) -> None:
-    from planning.families import generate_problem, split_seed
+    from planning.families import generate_problem
+    from planning.family_names import split_seed
 
     checker = SphereCollisionChecker(
         robot, spheres, generate_problem("shelf_i", split_seed("test", 0), robot, spheres).world

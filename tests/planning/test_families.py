@@ -8,14 +8,8 @@ import pytest
 
 from gaide_core.errors import PlanningError
 from planning.checker import make_checker
-from planning.families import (
-    FAMILIES,
-    MIN_EE_DISTANCE,
-    SEED_RANGES,
-    generate_problem,
-    parse_families,
-    split_seed,
-)
+from planning.families import MIN_EE_DISTANCE, generate_problem
+from planning.family_names import FAMILIES, SEED_RANGES, parse_families, split_seed
 from planning.problem import DIFFICULTIES, load_problems, save_problems
 from planning.robot_model import RobotModel
 from planning.scene_views import camera_view, surface_cloud

@@ -9,7 +9,8 @@ import pytest
 
 from gaide_core.errors import PlanningError
 from planning import harness
-from planning.families import generate_problem, split_seed
+from planning.families import generate_problem
+from planning.family_names import split_seed
 from planning.harness import HarnessCfg, run_harness
 from planning.harness_report import markdown_table, text_table
 from planning.neural.checkpoint import shipped_checkpoint
@@ -175,7 +176,7 @@ def test_bench_planning_loads_the_given_weights_folder(tmp_path: Path) -> None:
 def test_the_test_split_is_balanced_over_the_categories_and_reported_by_category(
     tmp_path: Path,
 ) -> None:
-    from planning.families import CATEGORIES
+    from planning.family_names import CATEGORIES
     from planning.harness import HarnessCfg, run_harness, split_problem
     from planning.harness_report import category_table
 
@@ -191,3 +192,24 @@ def test_the_test_split_is_balanced_over_the_categories_and_reported_by_category
     assert set(per) == set(CATEGORIES) and all(v["n"] == 1 for v in per.values())
     table = category_table(result)
     assert all(c in table for c in CATEGORIES) and "| rrtc |" in table
+
+
+def test_results_do_not_depend_on_the_worker_count() -> None:
+    """Each problem's planner seed comes from the problem, not from the worker that runs it:
+    one process and two give the same records (the compiled RRT-Connect stops at its first
+    solution, far inside the budget, so time does not decide the path)."""
+
+    def records(workers: int) -> list[tuple[str, str, str, float | None]]:
+        cfg = HarnessCfg(
+            families=("tabletop", "box"),
+            planners=("rrtc",),
+            problems=3,
+            budget_s=60.0,
+            workers=workers,
+        )
+        result = run_harness(cfg)
+        return sorted((r.problem, r.planner, r.status, r.cost) for r in result.records)
+
+    one, two = records(1), records(2)
+    assert len(one) == 6 and all(status == "success" for _, _, status, _ in one)
+    assert one == two

@@ -12,7 +12,8 @@ import pytest
 from gaide_core.errors import PlanningError
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
-from planning.families import generate_problem, split_seed
+from planning.families import generate_problem
+from planning.family_names import split_seed
 from planning.neural_planner import NeuralPlanner
 from planning.path_check import check_path
 from planning.planner import PlanStatus

@@ -9,8 +9,7 @@ from planning.ompl_planners import (
     ANYTIME_PLANNERS,
     PLANNER_NAMES,
     OmplPlanner,
-    _repair,
-    make_planner,
+    make_ompl_planner,
 )
 from planning.planner import Planner, PlanResult, PlanStatus, path_length
 from planning.robot_model import RobotModel
@@ -39,7 +38,7 @@ def solved(wall: CollisionChecker) -> dict[str, PlanResult]:
     start, goal = wall_problem()
     out = {}
     for name in PLANNER_NAMES:
-        planner: Planner = make_planner(name)
+        planner: Planner = make_ompl_planner(name)
         budget = ANYTIME_BUDGET_S if name in ANYTIME_PLANNERS else CONNECT_BUDGET_S
         out[name] = planner.plan(
             wall, start, goal, budget_s=budget, rng=np.random.default_rng(SEED)
@@ -103,7 +102,7 @@ def test_endpoint_in_collision_is_a_status_with_the_diagnosis(
         start = through
     else:
         goal = through
-    res = make_planner("bitstar").plan(wall, start, goal, budget_s=5.0, rng=rng)
+    res = make_ompl_planner("bitstar").plan(wall, start, goal, budget_s=5.0, rng=rng)
     expected = PlanStatus.START_INVALID if which == "start" else PlanStatus.GOAL_INVALID
     assert res.status is expected
     assert res.path is None and not res.success
@@ -116,7 +115,7 @@ def test_goal_outside_the_joint_limits_is_goal_invalid(
 ) -> None:
     start, goal = wall_problem()
     goal[2] = 3.5
-    res = make_planner("rrtconnect").plan(wall, start, goal, budget_s=5.0, rng=rng)
+    res = make_ompl_planner("rrtconnect").plan(wall, start, goal, budget_s=5.0, rng=rng)
     assert res.status is PlanStatus.GOAL_INVALID
     assert "outside limits" in res.detail and "elbow_joint" in res.detail
 
@@ -128,7 +127,7 @@ def test_an_enclosed_goal_times_out(
     tube = tube_checker(robot, spheres)
     start, goal = np.zeros(6), robot.named_configuration("up")
     assert tube.config_valid(np.stack([start, goal])).all(), "both ends are valid"
-    res = make_planner(name).plan(tube, start, goal, budget_s=1.0, rng=rng)
+    res = make_ompl_planner(name).plan(tube, start, goal, budget_s=1.0, rng=rng)
     assert res.status is PlanStatus.TIMEOUT, (res.status, res.detail, res.stats)
     assert res.path is None and res.cost == float("inf")
     assert res.time_s >= 1.0
@@ -137,7 +136,7 @@ def test_an_enclosed_goal_times_out(
 
 def test_unknown_planner_names_list_the_valid_ones() -> None:
     with pytest.raises(PlanningError) as err:
-        make_planner("prm")
+        make_ompl_planner("prm")
     for name in PLANNER_NAMES:
         assert name in str(err.value)
     with pytest.raises(PlanningError):
@@ -150,12 +149,12 @@ def test_a_bad_budget_is_refused(
 ) -> None:
     start, goal = wall_problem()
     with pytest.raises(PlanningError, match="budget_s"):
-        make_planner("rrtconnect").plan(wall, start, goal, budget_s=budget, rng=rng)
+        make_ompl_planner("rrtconnect").plan(wall, start, goal, budget_s=budget, rng=rng)
 
 
 def test_rrtconnect_is_reproducible_for_a_seed(wall: CollisionChecker) -> None:
     start, goal = wall_problem()
-    planner = make_planner("rrtconnect")
+    planner = make_ompl_planner("rrtconnect")
 
     def path(seed: int) -> np.ndarray:
         res = planner.plan(wall, start, goal, budget_s=10.0, rng=np.random.default_rng(seed))
@@ -178,7 +177,7 @@ def test_anytime_first_solution_is_reproducible_for_a_seed(
     # depends on how many iterations fit in the budget.
     start, goal = wall_problem()
     runs = [
-        make_planner("aorrtc").plan(
+        make_ompl_planner("aorrtc").plan(
             wall, start, goal, budget_s=2.0, rng=np.random.default_rng(seed)
         )
         for seed in (11, 11, 12)
@@ -193,7 +192,7 @@ def test_anytime_first_solution_is_reproducible_for_a_seed(
 def test_simplify_shortens_the_same_solution(wall: CollisionChecker) -> None:
     start, goal = wall_problem()
     raw, simple = (
-        make_planner("rrtconnect", simplify=s).plan(
+        make_ompl_planner("rrtconnect", simplify=s).plan(
             wall, start, goal, budget_s=10.0, rng=np.random.default_rng(SEED)
         )
         for s in (False, True)
@@ -213,7 +212,7 @@ def test_anytime_simplify_leaves_the_simplifier_a_share_of_the_budget(
     # not: the search is cut at 90 % of the budget, and whatever the simplifier returns in
     # the rest, the path is valid and no longer than the search's.
     start, goal = wall_problem()
-    res = make_planner("aorrtc", simplify=True).plan(
+    res = make_ompl_planner("aorrtc", simplify=True).plan(
         wall, start, goal, budget_s=2.0, rng=np.random.default_rng(SEED)
     )
     assert res.status is PlanStatus.SUCCESS, res.detail
@@ -245,12 +244,12 @@ class _StraightLineSimplifier:
 def test_a_simplified_path_that_cannot_be_repaired_falls_back_to_the_search_s_solution(
     name: str, wall: CollisionChecker, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import planning.ompl_planners as mod
+    from ompl import geometric as og  # the module the wrapper uses
 
-    monkeypatch.setattr(mod.og, "PathSimplifier", _StraightLineSimplifier)
+    monkeypatch.setattr(og, "PathSimplifier", _StraightLineSimplifier)
     start, goal = wall_problem()
     budget = 2.0 if name in ANYTIME_PLANNERS else CONNECT_BUDGET_S
-    res = make_planner(name, simplify=True).plan(
+    res = make_ompl_planner(name, simplify=True).plan(
         wall, start, goal, budget_s=budget, rng=np.random.default_rng(SEED)
     )
     assert res.status is PlanStatus.SUCCESS, res.detail
@@ -263,26 +262,6 @@ def test_a_simplified_path_that_cannot_be_repaired_falls_back_to_the_search_s_so
     assert edges_all_valid(wall, res.path)
 
 
-def test_repair_skips_waypoints_the_checker_rejects(wall: CollisionChecker) -> None:
-    start, goal = wall_problem()
-    res = make_planner("rrtconnect").plan(
-        wall, start, goal, budget_s=10.0, rng=np.random.default_rng(SEED)
-    )
-    assert res.path is not None
-    inside = start.copy()
-    inside[0] = 0.0  # in the wall
-    # A waypoint in the wall, inserted right after the start, is skipped again.
-    spoiled = np.insert(res.path, 1, inside, axis=0)
-    assert wall.first_invalid_edge(spoiled) == 0
-    repaired, dropped, bad = _repair(wall, spoiled)
-    assert bad is None and dropped == 1
-    np.testing.assert_array_equal(repaired, res.path)
-    # Straight through the wall, with nothing to skip: not repairable.
-    through = np.stack([start, goal])
-    _, dropped, bad = _repair(wall, through)
-    assert bad == 0 and dropped == 0
-
-
 @pytest.mark.parametrize("name", PLANNER_NAMES)
 def test_a_free_straight_edge_is_solved_by_every_planner(name: str, wall: CollisionChecker) -> None:
     # The wall's start with a goal it can reach in a straight line: OMPL's AORRTC reports
@@ -292,10 +271,12 @@ def test_a_free_straight_edge_is_solved_by_every_planner(name: str, wall: Collis
     goal[0] += 0.5
     assert wall.edge_valid(start, goal)
     # 2 s: RRT* reaches the goal by goal bias, which took > 0.5 s on a loaded 2-core machine
-    res = make_planner(name).plan(wall, start, goal, budget_s=2.0, rng=np.random.default_rng(SEED))
+    res = make_ompl_planner(name).plan(
+        wall, start, goal, budget_s=2.0, rng=np.random.default_rng(SEED)
+    )
     assert res.status is PlanStatus.SUCCESS, (res.status, res.detail)
     assert res.cost == pytest.approx(0.5, abs=1e-6) or name in ("rrtconnect", "rrtstar")
-    assert edges_all_valid(wall, res.path)
+    assert res.path is not None and edges_all_valid(wall, res.path)
 
 
 def test_plan_between_joins_one_of_the_starts_to_one_of_the_goals(

@@ -8,7 +8,8 @@ import pytest
 from gaide_core.errors import ConfigError, PlanningError
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
-from planning.families import FAMILIES, generate_problem, split_seed
+from planning.families import generate_problem
+from planning.family_names import FAMILIES, split_seed
 from planning.path_check import check_path
 from planning.planner import PlanStatus, path_length
 from planning.registry import make_planner
@@ -152,3 +153,40 @@ def test_bad_settings_and_checkpoints_are_refused() -> None:
         RRTCCfg(max_iterations=0)
     with pytest.raises(ConfigError, match="checkpoint is for the neural planners"):
         make_planner("rrtc", checkpoint="gaide.pt")
+
+
+def test_kernel_tables_come_from_the_checker_protocol(
+    robot: RobotModel, spheres: SphereModel, wall: CollisionChecker
+) -> None:
+    # The numpy reference exports the same tables: the same seed gives the same path.
+    reference = make_checker(robot, spheres, wall.world, backend="numpy")
+    start, goal = wall_problem()
+
+    def path(checker: CollisionChecker) -> np.ndarray:
+        res = CompiledRRTConnect().plan(
+            checker, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(5)
+        )
+        assert res.path is not None, res.detail
+        return res.path
+
+    np.testing.assert_array_equal(path(reference), path(wall))
+
+    class NoTables:
+        """A checker that lacks the optional ``kernel_tables``."""
+
+        def __init__(self, inner: CollisionChecker) -> None:
+            self._inner = inner
+
+        def __getattr__(self, name: str) -> object:
+            if name == "kernel_tables":
+                raise AttributeError(name)
+            return getattr(self._inner, name)
+
+    with pytest.raises(PlanningError, match="need a checker with kernel tables"):
+        CompiledRRTConnect().plan(
+            NoTables(wall),  # type: ignore[arg-type]
+            start,
+            goal,
+            budget_s=BUDGET_S,
+            rng=np.random.default_rng(5),
+        )

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from planning.checker import make_checker
-from planning.families import generate_problem, split_seed
+from planning.families import generate_problem
+from planning.family_names import split_seed
 from planning.neural.checkpoint import card_path, file_sha256, load_checkpoint, shipped_checkpoint
 from planning.neural.models import MODEL_KINDS
 from planning.neural_planner import NeuralPlanner
