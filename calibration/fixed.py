@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from calibration.frames import check_camera, check_stamps, not_found_error, observe
 from calibration.pnp import project, robust_average
-from calibration.result import CalibrationResult, FrameResidual, Mode
+from calibration.result import CalibrationResult, FrameResidual, Mode, camera_fields
 from calibration.scale_check import check_target_scale
 from calibration.targets import Target, target_from_dict, to_dict
 from gaide_core.errors import CalibrationError
@@ -89,10 +89,7 @@ def calibrate_fixed(
     return CalibrationResult(
         mode=Mode.FIXED,
         T_base_cam=T_base_cam,
-        K=camera.K,
-        D=camera.D,
-        width=camera.width,
-        height=camera.height,
+        **camera_fields(camera),
         reprojection_rms_px=rms_all,
         frames=tuple(frames),
         target=to_dict(target),

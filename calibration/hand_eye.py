@@ -26,7 +26,14 @@ from scipy.spatial.transform import Rotation
 from calibration.detect import Detection
 from calibration.frames import check_camera, check_stamps, not_found_error, observe
 from calibration.pnp import dist_coeffs, pose_difference, robust_average
-from calibration.result import CalibrationResult, FrameResidual, MethodResult, Mode, Spread
+from calibration.result import (
+    CalibrationResult,
+    FrameResidual,
+    MethodResult,
+    Mode,
+    Spread,
+    camera_fields,
+)
 from calibration.scale_check import check_target_scale
 from calibration.targets import Target, to_dict
 from gaide_core.camera import Intrinsics
@@ -288,10 +295,7 @@ def calibrate_hand_eye(
     return CalibrationResult(
         mode=Mode.HAND_EYE,
         T_base_cam=X,
-        K=cam.K,
-        D=cam.D,
-        width=cam.width,
-        height=cam.height,
+        **camera_fields(cam),
         reprojection_rms_px=rms_all,
         frames=frames,
         methods=tuple(methods),

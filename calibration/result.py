@@ -31,6 +31,7 @@ import numpy.typing as npt
 import yaml
 
 from gaide_core.atomic import write_bytes_atomic
+from gaide_core.camera import Intrinsics
 from gaide_core.errors import CalibrationError
 from gaide_core.text_io import load_yaml
 from gaide_core.transforms import from_xyz_quat, is_rigid, to_xyz_quat, transform_error
@@ -71,6 +72,11 @@ class Spread:
 
     translation_mm: float
     rotation_deg: float
+
+
+def camera_fields(camera: Intrinsics) -> dict[str, Any]:
+    """The :class:`CalibrationResult` fields of the camera the result is for."""
+    return {"K": camera.K, "D": camera.D, "width": camera.width, "height": camera.height}
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -192,17 +192,15 @@ def _grown(nodes: Array, parents: np.ndarray) -> tuple[Array, np.ndarray]:
 def _trace(nodes: Array, parents: np.ndarray, a: int, b: int) -> tuple[Array, int, int]:
     """The path root(tree 0) .. node a, node b .. root(tree 1) (node a and node b are the
     same configuration: the trees met there), and the two roots' indices."""
-    head = []
-    k = a
-    while k >= 0:
-        head.append(k)
-        root_a = k
-        k = int(parents[0, k])
-    tail = []
-    k = b
-    while k >= 0:
-        tail.append(k)
-        root_b = k
-        k = int(parents[1, k])
+    head, root_a = _to_root(parents[0], a)
+    tail, root_b = _to_root(parents[1], b)
     rows = [nodes[0, k] for k in reversed(head)] + [nodes[1, k] for k in tail[1:]]
     return np.array(rows), root_a, root_b
+
+
+def _to_root(parents: np.ndarray, k: int) -> tuple[list[int], int]:
+    """Node ``k`` and its ancestors up to its tree's root (parents < 0), and the root."""
+    chain = [k]
+    while parents[chain[-1]] >= 0:
+        chain.append(int(parents[chain[-1]]))
+    return chain, chain[-1]
