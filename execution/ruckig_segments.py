@@ -126,6 +126,16 @@ class MoveTable:
         self.a = np.array([p.a[:-1] for p in profs], float)
         self.j = np.array([p.j for p in profs], float)
 
+    def target(self) -> tuple[Array, Array, Array]:
+        """The move's target position, velocity and acceleration (dof,), exactly as asked
+        (``Trajectory.at_time(duration)`` integrates the phases and lands ~1e-8 rad off)."""
+        profs = self.traj.profiles[0][: self.dof]
+        return (
+            np.array([p.pf for p in profs], float),
+            np.array([p.vf for p in profs], float),
+            np.array([p.af for p in profs], float),
+        )
+
     def states(self, local: Array) -> tuple[Array, Array, Array, Array]:
         """Position, velocity, acceleration, jerk (N, dof) at local times (N,) s within the
         move."""
@@ -181,8 +191,7 @@ class SegmentChain:
             q[rows], qd[rows], qdd[rows], jerk[rows] = self._tables[k].states(local)
             if local[-1] >= self.durations[k]:  # the end of a move: its target state exactly
                 end = rows[local >= self.durations[k]]
-                pos, vel, acc = self.segments[k].at_time(self.durations[k])
-                q[end], qd[end], qdd[end] = pos, vel, acc
+                q[end], qd[end], qdd[end] = self._tables[k].target()
         past = times > self.duration
         jerk[past] = 0.0
         return q, qd, qdd, jerk

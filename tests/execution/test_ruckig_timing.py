@@ -216,3 +216,24 @@ def test_limits_of_the_wrong_length_are_refused(
         RuckigParameterizer(TimingCfg(max_velocity=(1.0, 2.0))).parameterize(
             corner_path, free_checker
         )
+
+
+def test_the_last_sample_is_the_goal_exactly(
+    free_checker: CollisionChecker, robot: RobotModel
+) -> None:
+    """A case hypothesis found: Ruckig's own end state (at_time(duration)) landed 6.5e-9 rad
+    from the goal; the chain now takes each move's target as asked."""
+    path = robot.named_configuration("home") + np.array(
+        [[0.625, 0, 0, 0, 0.5, 0], [0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0.625]]
+    )
+    cfg = TimingCfg(
+        rate_hz=125.0,
+        velocity_scale=0.5,
+        max_velocity=(1.0, 1.0, 1.0, 1.0, 1.0, 0.3125),
+        max_acceleration=(4.0,) * 6,
+        max_jerk=(30.0,) * 6,
+        shortcut=False,
+    )
+    traj = RuckigParameterizer(cfg).parameterize(path, free_checker)
+    np.testing.assert_array_equal(traj.q[-1], path[-1])
+    np.testing.assert_array_equal(traj.qd[-1], np.zeros(6))
