@@ -144,7 +144,7 @@ def calibration_stage(
         source = "calibration file"
         overlay = None
     else:
-        assert cfg.bag is not None  # checked by setup_stage
+        assert cfg.bag is not None  # checked by run.check_inputs
         target_pose = c.target_pose
         if c.mode == "fixed" and target_pose is None:
             beside = target_pose_path(cfg.bag)
@@ -205,7 +205,7 @@ def perception_stage(
     from gaide.flows.perceive import perceive_bag
 
     p = cfg.perception
-    assert cfg.bag is not None  # checked by setup_stage
+    assert cfg.bag is not None  # checked by run.check_inputs
     joints = None if p.joints is None else np.asarray(p.joints)
     calibration = camera.result if camera.result is not None else camera.T_base_cam
     cloud, _, q = perceive_bag(
