@@ -24,7 +24,13 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from calibration.targets import Charuco, Target, aruco_dictionary
+from calibration.targets import (
+    DEFAULT_DICTIONARY,
+    Charuco,
+    Target,
+    dictionary_name,
+    get_dictionary,
+)
 from gaide_core.errors import CalibrationError
 from gaide_core.types import Array
 
@@ -43,7 +49,7 @@ class Detection:
     ``object_points``: (N, 3) in the target frame (m); ``image_points``: (N, 2) pixels (u
     right, v down, pixel centres at integers); ``point_ids``: (N,) the tag id of each point's
     tag (ChArUco: the chessboard corner id); ``ids``: the target's tag ids seen;
-    ``foreign_ids``: tag36h11 ids seen that do not belong to the target;
+    ``foreign_ids``: ids of the target's dictionary seen that do not belong to it;
     ``marker_corners``: (M, 4, 2) pixels of the target's tags seen, for drawing.
     """
 
@@ -84,15 +90,15 @@ def to_gray(image: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
     )
 
 
-@lru_cache(maxsize=2)
-def _marker_detector(refinement: int) -> cv2.aruco.ArucoDetector:
+@lru_cache(maxsize=64)
+def _marker_detector(refinement: int, dictionary: str) -> cv2.aruco.ArucoDetector:
     params = cv2.aruco.DetectorParameters()
     params.cornerRefinementMethod = refinement
-    return cv2.aruco.ArucoDetector(aruco_dictionary(), params)
+    return cv2.aruco.ArucoDetector(get_dictionary(dictionary), params)
 
 
-def _detect_with(gray: npt.NDArray[np.uint8], refinement: int) -> dict[int, Array]:
-    corners, ids, _ = _marker_detector(refinement).detectMarkers(gray)
+def _detect_with(gray: npt.NDArray[np.uint8], refinement: int, dictionary: str) -> dict[int, Array]:
+    corners, ids, _ = _marker_detector(refinement, dictionary).detectMarkers(gray)
     if ids is None:
         return {}
     offset = APRILTAG_PIXEL_OFFSET if refinement == cv2.aruco.CORNER_REFINE_APRILTAG else 0.0
@@ -102,13 +108,15 @@ def _detect_with(gray: npt.NDArray[np.uint8], refinement: int) -> dict[int, Arra
     }
 
 
-def _markers(gray: npt.NDArray[np.uint8], wanted: set[int]) -> dict[int, Array]:
+def _markers(
+    gray: npt.NDArray[np.uint8], wanted: set[int], dictionary: str = DEFAULT_DICTIONARY
+) -> dict[int, Array]:
     """Tag corners (4, 2) by id. The AprilTag quad finder first; when it misses some of the
     ``wanted`` ids, OpenCV's contour finder (``CORNER_REFINE_SUBPIX``) adds the tags it
     finds that the first did not (it finds small, dim tags the quad finder drops)."""
-    found = _detect_with(gray, cv2.aruco.CORNER_REFINE_APRILTAG)
+    found = _detect_with(gray, cv2.aruco.CORNER_REFINE_APRILTAG, dictionary)
     if not wanted <= found.keys():
-        extra = _detect_with(gray, cv2.aruco.CORNER_REFINE_SUBPIX)
+        extra = _detect_with(gray, cv2.aruco.CORNER_REFINE_SUBPIX, dictionary)
         found.update({i: c for i, c in extra.items() if i not in found})
     return found
 
@@ -130,7 +138,7 @@ def scan(
     """
     gray = to_gray(image)
     own = set(target.ids)
-    markers = _markers(gray, own)
+    markers = _markers(gray, own, target.dictionary)
     ids = sorted(markers)
     mine = [(markers[i], i) for i in ids if i in own]
     seen = tuple(sorted({i for _, i in mine}))
@@ -179,3 +187,12 @@ def detect(
     found (use ``scan`` to learn which other tag ids were seen)."""
     detection = scan(image, target, K, D)
     return detection if detection.found else None
+
+
+def detect_markers(
+    image: npt.NDArray[np.uint8], dictionary: str = DEFAULT_DICTIONARY
+) -> dict[int, Array]:
+    """Every marker of ``dictionary`` (any name ``targets.dictionary_name`` reads) in
+    ``image`` (gray or RGB uint8): its (4, 2) corners (px, OpenCV's order TL, TR, BR, BL,
+    pixel centres at integers) by id."""
+    return _markers(to_gray(image), set(), dictionary_name(dictionary))
