@@ -54,7 +54,7 @@ def calibrate_fixed(
     obs = observe(images, camera, target, check_stamps(stamps_ns, len(images)))
     found = [o for o in obs if o.pose is not None]
     if not found:
-        raise not_found_error(target, obs, "need at least 1")
+        raise not_found_error(target, obs, "need at least 1", images)
     if depth_m is not None:
         check_target_scale(
             [o.detection for o in obs],

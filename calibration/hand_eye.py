@@ -1,14 +1,21 @@
-"""Eye-to-hand calibration: the camera is fixed, the target rides on the robot's flange.
+"""Hand-eye calibration, both set-ups.
 
-Unknowns: ``X = T_base_cam`` and ``Y = T_flange_target``. Frame i gives
-``T_base_flange_i @ Y = X @ T_cam_target_i``.
+- Eye-to-hand (``Setup.EYE_TO_HAND``): the camera is fixed, the target rides on the flange.
+  Unknowns ``X = T_base_cam`` and ``Y = T_flange_target``; frame i gives
+  ``T_base_flange_i @ Y = X @ T_cam_target_i``.
+- Eye-in-hand (``Setup.EYE_IN_HAND``): the camera rides on the flange, the target is fixed.
+  Unknowns ``X = T_flange_cam`` and ``Y = T_base_target``; frame i gives
+  ``T_base_flange_i @ X @ T_cam_target_i = Y``.
 
-``cv2.calibrateHandEye`` solves the eye-in-hand form ``T_base_gripper_i @ T_gripper_cam @
-T_cam_target_i = const``. Fed ``inv(T_base_flange_i)`` as the "gripper to base" poses, its
-equation reads ``T_flange_base_i @ X @ T_cam_target_i = const = Y``, the eye-to-hand
-equation, and its "camera to gripper" answer is ``X = T_base_cam``. Five closed-form methods
-are run and reported; the one with the lowest reprojection error starts a least-squares
-refinement of X and Y on the reprojection error of every target point in every frame.
+Both read ``T_cam_target_i = inv(X) @ A_i @ Y`` with ``A_i = T_base_flange_i`` (eye-to-hand)
+or ``inv(T_base_flange_i)`` (eye-in-hand). ``cv2.calibrateHandEye`` solves
+``T_base_gripper_i @ T_gripper_cam @ T_cam_target_i = const``: fed ``inv(A_i)`` as the
+"gripper to base" poses its answer is X in either set-up. Five closed-form methods are run
+and reported; the one with the lowest reprojection error starts a least-squares refinement
+of X and Y together on the reprojection error of every target point in every frame. The
+refined estimate's standard deviation comes from that least-squares problem (Gauss-Newton
+covariance, scaled by the residuals' variance), so a user learns how well the data pins the
+answer down rather than how much the closed-form methods disagree.
 """
 
 from __future__ import annotations
@@ -31,7 +38,9 @@ from calibration.result import (
     FrameResidual,
     MethodResult,
     Mode,
+    Setup,
     Spread,
+    Uncertainty,
     camera_fields,
 )
 from calibration.scale_check import check_target_scale
@@ -116,15 +125,19 @@ def _vec_pose(v: Array) -> Array:
     return make_transform(Rotation.from_rotvec(v[:3]).as_matrix(), v[3:6])
 
 
-def _residuals(
-    params: Array, cam: Intrinsics, T_flange_base: Array, dets: Sequence[Detection]
+def _residuals(params: Array, cam: Intrinsics, A: Array, dets: Sequence[Detection]) -> Array:
+    """Pixel residuals (2 per point, all frames) for params = [X (6), Y (6)] as rotvec + t,
+    with ``T_cam_target_i = inv(X) @ A_i @ Y`` (see the module docstring)."""
+    return _pose_residuals(_vec_pose(params[:6]), _vec_pose(params[6:]), cam, A, dets)
+
+
+def _pose_residuals(
+    X: Array, Y: Array, cam: Intrinsics, A: Array, dets: Sequence[Detection]
 ) -> Array:
-    """Pixel residuals (2 per point, all frames) for params = [X (6), Y (6)] as rotvec + t."""
-    X, Y = _vec_pose(params[:6]), _vec_pose(params[6:])
     X_inv = invert(X)
     out = []
-    for T_fb, det in zip(T_flange_base, dets, strict=True):
-        T_cam_target = X_inv @ invert(T_fb) @ Y
+    for A_i, det in zip(A, dets, strict=True):
+        T_cam_target = X_inv @ A_i @ Y
         rvec = Rotation.from_matrix(T_cam_target[:3, :3]).as_rotvec()
         uv, _ = cv2.projectPoints(
             det.object_points, rvec, T_cam_target[:3, 3], cam.K, dist_coeffs(cam.D)
@@ -143,25 +156,75 @@ def _frame_rms(res: Array, dets: Sequence[Detection]) -> Array:
     return np.array(rms)
 
 
-def _flange_target(X: Array, T_flange_base: Array, T_cam_target: Sequence[Array]) -> Array:
-    """Y given X: the robust average of ``inv(T_base_flange_i) @ X @ T_cam_target_i``."""
-    Ys = [T_fb @ X @ T_ct for T_fb, T_ct in zip(T_flange_base, T_cam_target, strict=True)]
+def _other_unknown(X: Array, A_inv: Array, T_cam_target: Sequence[Array]) -> Array:
+    """Y given X: the robust average of ``inv(A_i) @ X @ T_cam_target_i``."""
+    Ys = [B @ X @ T_ct for B, T_ct in zip(A_inv, T_cam_target, strict=True)]
     return robust_average(Ys).T
 
 
 def _refine(
-    X0: Array, Y0: Array, cam: Intrinsics, T_flange_base: Array, dets: Sequence[Detection]
+    X0: Array, Y0: Array, cam: Intrinsics, A: Array, dets: Sequence[Detection]
 ) -> tuple[Array, Array, Array]:
     """Least-squares X, Y (robust soft-L1 loss, 1 px scale) and the final residuals."""
     sol = least_squares(
         _residuals,
         np.concatenate([_pose_vec(X0), _pose_vec(Y0)]),
-        args=(cam, T_flange_base, dets),
+        args=(cam, A, dets),
         loss="soft_l1",
         f_scale=1.0,
         x_scale="jac",
     )
     return _vec_pose(sol.x[:6]), _vec_pose(sol.x[6:]), np.asarray(sol.fun)
+
+
+def _perturbed(T: Array, d: Array) -> Array:
+    """``T`` moved by ``d`` = [rotation vector (3, rad), translation (3, m)], both in the
+    frame ``T`` is expressed in (the parent frame), so ``d`` reads as the error of T."""
+    return make_transform(Rotation.from_rotvec(d[:3]).as_matrix() @ T[:3, :3], T[:3, 3] + d[3:])
+
+
+def uncertainty(
+    X: Array, Y: Array, cam: Intrinsics, A: Array, dets: Sequence[Detection]
+) -> Uncertainty:
+    """Standard deviation of X from the least-squares problem at the solution (X, Y).
+
+    Local parameters: a rotation vector and a translation applied to X (and Y) in their
+    parent frame. Covariance ``s^2 (J^T J)^-1`` with J the residuals' Jacobian (central
+    differences; 12 parameters, cheap) and ``s^2`` the residuals' variance per degree of
+    freedom. Y is a nuisance parameter: its correlation with X is kept (the full inverse).
+    """
+    r0 = _pose_residuals(X, Y, cam, A, dets)
+    steps = np.array([1e-6] * 3 + [1e-6] * 3)
+    cols = []
+    for k in range(12):
+        d = np.zeros(12)
+        d[k] = steps[k % 6]
+        plus = _pose_residuals(_perturbed(X, d[:6]), _perturbed(Y, d[6:]), cam, A, dets)
+        minus = _pose_residuals(_perturbed(X, -d[:6]), _perturbed(Y, -d[6:]), cam, A, dets)
+        cols.append((plus - minus) / (2 * steps[k % 6]))
+    J = np.column_stack(cols)
+    dof = max(len(r0) - 12, 1)
+    s2 = float(r0 @ r0) / dof
+    cov = s2 * np.linalg.pinv(J.T @ J)
+    rot_axes = np.sqrt(np.clip(np.diag(cov)[:3], 0, None))
+    t_axes = np.sqrt(np.clip(np.diag(cov)[3:6], 0, None))
+    return Uncertainty(
+        translation_mm=float(np.linalg.norm(t_axes)) * 1e3,
+        rotation_deg=float(np.degrees(np.linalg.norm(rot_axes))),
+        translation_axes_mm=tuple(float(v) * 1e3 for v in t_axes),
+        rotation_axes_deg=tuple(float(np.degrees(v)) for v in rot_axes),
+    )
+
+
+def rms_limit_px(width: int, height: int) -> float:
+    """Reprojection RMS (px) above which a result deserves a look: 0.15% of the image
+    diagonal, at least 1 px (1.2 px at 640x480, 4.8 px at 2448x2048). Detection noise grows
+    with resolution and blur, so a fixed pixel figure alarms users of large sensors."""
+    return max(1.0, 0.0015 * float(np.hypot(width, height)))
+
+
+#: Standard deviations of the answer above which a warning says the data is weak.
+WARN_STD_MM, WARN_STD_DEG = 2.0, 0.2
 
 
 def _spread(results: Sequence[MethodResult]) -> Spread:
@@ -179,20 +242,25 @@ def calibrate_hand_eye(
     target: Target,
     T_base_flange: Sequence[Array],
     *,
+    setup: Setup | str = Setup.EYE_TO_HAND,
     stamps_ns: Sequence[int] | None = None,
     depth_m: Sequence[Array] | None = None,
     min_detected_fraction: float = 0.5,
 ) -> CalibrationResult:
-    """Eye-to-hand ``T_base_cam`` from images of a target fixed to the flange.
+    """Hand-eye calibration from images and the flange pose at each image.
 
-    ``images``: gray or RGB uint8 from the fixed camera; ``K`` (3, 3) px, ``D`` (OpenCV
-    distortion, or None); ``T_base_flange``: (4, 4) flange pose in the base frame (m) when
-    each image was taken (from the caller's forward kinematics); ``stamps_ns``: per-image
-    stamps (ns); ``depth_m``: per-image depth (m) aligned to the color image, to catch a
-    wrong target size. The result also holds ``T_flange_target``, each closed-form method's
-    ``T_base_cam`` and their spread. Raises ``CalibrationError`` for fewer than 3 distinct
-    poses, degenerate motion, or a target found in under ``min_detected_fraction`` of images.
+    ``setup``: ``eye-to-hand`` (fixed camera, target on the flange; gives ``T_base_cam`` and
+    ``T_flange_target``) or ``eye-in-hand`` (camera on the flange, target fixed; gives
+    ``T_flange_cam`` and ``T_base_target``, and ``T_base_cam`` and the methods' answers are
+    the camera at the first image that shows the target). ``images``: gray or RGB uint8; ``K`` (3, 3) px, ``D`` (OpenCV distortion,
+    or None); ``T_base_flange``: (4, 4) flange pose in the base frame (m) at each image;
+    ``stamps_ns``: per-image stamps (ns); ``depth_m``: per-image depth (m) aligned to the
+    color image, to catch a wrong target size. The result also holds each closed-form
+    method's answer, their spread, and the refined answer's standard deviation. Raises
+    ``CalibrationError`` for counts that differ, fewer than 3 distinct poses, degenerate
+    motion, or a target found in under ``min_detected_fraction`` of the images.
     """
+    setup = Setup.parse(setup)
     cam = check_camera(images, K, D)
     if len(T_base_flange) != len(images):
         raise CalibrationError(
@@ -207,7 +275,10 @@ def calibrate_hand_eye(
     obs = [o for o in obs_all if o.pose is not None]
     if len(obs) < max(3, min_detected_fraction * len(images)):
         raise not_found_error(
-            target, obs_all, f"need at least 3 and {min_detected_fraction:.0%} of the images"
+            target,
+            obs_all,
+            f"need at least 3 and {min_detected_fraction:.0%} of the images",
+            images,
         )
     if depth_m is not None:
         check_target_scale(
@@ -219,6 +290,14 @@ def calibrate_hand_eye(
     T_bf = np.array([flange[o.index] for o in obs])
     check_motion(list(T_bf))
     T_fb = np.array([invert(T) for T in T_bf])
+    # T_cam_target_i = inv(X) @ A_i @ Y; calibrateHandEye takes inv(A_i) as gripper-to-base.
+    A, A_inv = (T_bf, T_fb) if setup is Setup.EYE_TO_HAND else (T_fb, T_bf)
+    first = obs[0].index
+
+    def camera_in_base(X: Array) -> Array:
+        """T_base_cam from X: X itself, or eye-in-hand the camera at the first detection."""
+        return X if setup is Setup.EYE_TO_HAND else flange[first] @ X
+
     T_ct = [o.pose.T_cam_target for o in obs if o.pose is not None]
     dets = [o.detection for o in obs if o.detection is not None]
 
@@ -227,8 +306,8 @@ def calibrate_hand_eye(
     for name, flag in METHODS.items():
         try:
             R, t = cv2.calibrateHandEye(
-                [T[:3, :3] for T in T_fb],
-                [T[:3, 3] for T in T_fb],
+                [T[:3, :3] for T in A_inv],
+                [T[:3, 3] for T in A_inv],
                 [T[:3, :3] for T in T_ct],
                 [T[:3, 3] for T in T_ct],
                 method=flag,
@@ -242,10 +321,10 @@ def calibrate_hand_eye(
             continue
         # Re-orthonormalise: some methods return a rotation that is a little off.
         X = make_transform(Rotation.from_matrix(R).as_matrix(), np.ravel(t))
-        Y = _flange_target(X, T_fb, T_ct)
-        res = _residuals(np.concatenate([_pose_vec(X), _pose_vec(Y)]), cam, T_fb, dets)
+        Y = _other_unknown(X, A_inv, T_ct)
+        res = _pose_residuals(X, Y, cam, A, dets)
         method_rms = float(np.sqrt(np.mean(res**2) * 2))
-        methods.append(MethodResult(name, X, method_rms))
+        methods.append(MethodResult(name, camera_in_base(X), method_rms))
         starts[name] = (X, Y)
         log.info("hand-eye %s: reprojection RMS %.3f px", name, method_rms)
     if not methods:
@@ -253,13 +332,14 @@ def calibrate_hand_eye(
     best = min(methods, key=lambda m: m.rms_px)
     spread = _spread(methods)
     log.info(
-        "hand-eye methods agree within %.2f mm / %.3f deg; refining from %s",
+        "closed-form hand-eye methods agree within %.2f mm / %.3f deg (a start only); "
+        "refining from %s",
         spread.translation_mm,
         spread.rotation_deg,
         best.name,
     )
 
-    X, Y, res = _refine(*starts[best.name], cam, T_fb, dets)
+    X, Y, res = _refine(*starts[best.name], cam, A, dets)
     rms = _frame_rms(res, dets)
     med = float(np.median(rms))
     limit = max(med + OUTLIER_K * 1.4826 * float(np.median(np.abs(rms - med))), OUTLIER_MIN_PX)
@@ -267,9 +347,14 @@ def calibrate_hand_eye(
     rejected: dict[int, str] = {}
     if len(keep) < len(obs) and len(keep) >= 3:
         for k in set(range(len(obs))) - set(keep):
-            rejected[obs[k].index] = f"{rms[k]:.2f} px after refinement (limit {limit:.2f} px)"
-        X, Y, _ = _refine(X, Y, cam, T_fb[keep], [dets[k] for k in keep])
-    res = _residuals(np.concatenate([_pose_vec(X), _pose_vec(Y)]), cam, T_fb, dets)
+            rejected[obs[k].index] = (
+                f"outlier: {rms[k]:.2f} px after refinement (limit {limit:.2f} px, "
+                f"{OUTLIER_K:g} robust sigmas above the median {med:.2f} px); a stale flange "
+                "pose or a misdetection"
+            )
+            log.warning("hand-eye: frame %d dropped: %s", obs[k].index, rejected[obs[k].index])
+        X, Y, _ = _refine(X, Y, cam, A[keep], [dets[k] for k in keep])
+    res = _pose_residuals(X, Y, cam, A, dets)
     rms = _frame_rms(res, dets)
     by_index = {o.index: float(r) for o, r in zip(obs, rms, strict=True)}
     frames = tuple(
@@ -282,24 +367,51 @@ def calibrate_hand_eye(
         )
         for o in obs_all
     )
-    used_sq = [r**2 for o, r in zip(obs, rms, strict=True) if o.index not in rejected]
-    pts = [len(d.object_points) for o, d in zip(obs, dets, strict=True) if o.index not in rejected]
-    rms_all = float(np.sqrt(np.dot(used_sq, pts) / np.sum(pts)))
-    log.info("hand-eye refined: reprojection RMS %.3f px over %d frames", rms_all, len(pts))
-    if rms_all > 2.0:
+    used = [k for k, o in enumerate(obs) if o.index not in rejected]
+    pts = [len(dets[k].object_points) for k in used]
+    rms_all = float(np.sqrt(np.dot([rms[k] ** 2 for k in used], pts) / np.sum(pts)))
+    std = uncertainty(X, Y, cam, A[used], [dets[k] for k in used])
+    log.info(
+        "hand-eye (%s) refined: reprojection RMS %.3f px over %d frames; standard deviation "
+        "%.2f mm, %.3f deg",
+        setup.value,
+        rms_all,
+        len(pts),
+        std.translation_mm,
+        std.rotation_deg,
+    )
+    rms_limit = rms_limit_px(cam.width, cam.height)
+    if rms_all > rms_limit:
         log.warning(
-            "hand-eye reprojection RMS %.2f px is high: check the flange poses' time alignment, "
-            "the intrinsics and the target size",
+            "hand-eye reprojection RMS %.2f px is above %.2f px (0.15%% of this %dx%d image's "
+            "diagonal): check the flange poses' time alignment, the intrinsics and the target "
+            "size",
             rms_all,
+            rms_limit,
+            cam.width,
+            cam.height,
         )
+    if std.translation_mm > WARN_STD_MM or std.rotation_deg > WARN_STD_DEG:
+        log.warning(
+            "the data pins the camera down to only %.2f mm / %.3f deg (one standard "
+            "deviation): add poses with larger rotations about different axes, or bring the "
+            "target closer",
+            std.translation_mm,
+            std.rotation_deg,
+        )
+    in_hand = setup is Setup.EYE_IN_HAND
     return CalibrationResult(
         mode=Mode.HAND_EYE,
-        T_base_cam=X,
+        setup=setup,
+        T_base_cam=camera_in_base(X),
         **camera_fields(cam),
         reprojection_rms_px=rms_all,
         frames=frames,
         methods=tuple(methods),
         spread=spread,
-        T_flange_target=Y,
+        uncertainty=std,
+        T_flange_target=None if in_hand else Y,
+        T_flange_cam=X if in_hand else None,
+        T_base_target=Y if in_hand else None,
         target=to_dict(target),
     )

@@ -3,17 +3,26 @@
 YAML layout (lengths in metres, pixels for image quantities)::
 
     mode: fixed | hand_eye
+    setup: eye_to_hand | eye_in_hand | null             # hand-eye only
     T_base_cam: {matrix: 4x4, xyz: [x, y, z], quat_xyzw: [x, y, z, w]}
     intrinsics: {width, height, K: 3x3, D: [...]}
     reprojection_rms_px: float
     frames: [{index, stamp_ns, rms_px, used, reason}, ...]
     methods: [{name, T_base_cam: {...}, rms_px}, ...]   # hand-eye only, else []
     spread: {translation_mm, rotation_deg} | null        # hand-eye only
-    T_flange_target: {...} | null                        # hand-eye only
+    uncertainty: {translation_mm, rotation_deg, translation_axes_mm: [3],
+                  rotation_axes_deg: [3]} | null         # hand-eye only
+    T_flange_target: {...} | null                        # eye-to-hand only
+    T_flange_cam: {...} | null                           # eye-in-hand only
+    T_base_target: {...} | null                          # eye-in-hand only
+    flange_frame: str | null                             # hand-eye: the flange poses' frame
     target: {type: ..., ...} | null
 
 ``T_base_cam`` is the camera's optical frame (OpenCV: x right, y down, z forward) in the
-robot base frame. When reading, ``matrix`` is authoritative; ``xyz``/``quat_xyzw`` must agree.
+robot base frame; for a camera on the flange (eye-in-hand) it is where the camera was at the
+first image that showed the target, and ``T_flange_cam`` is the answer that holds at every
+pose. When reading, ``matrix`` is authoritative; ``xyz``/``quat_xyzw`` must agree. Files
+written before ``setup`` existed read as eye-to-hand.
 """
 
 from __future__ import annotations
@@ -42,7 +51,27 @@ class Mode(str, Enum):
     """How the camera was calibrated."""
 
     FIXED = "fixed"  # target at a known pose in the base frame
-    HAND_EYE = "hand_eye"  # eye-to-hand: target on the flange, camera fixed
+    HAND_EYE = "hand_eye"  # target or camera on the flange: see Setup
+
+
+class Setup(str, Enum):
+    """Where the camera sits in a hand-eye calibration."""
+
+    EYE_TO_HAND = "eye_to_hand"  # camera fixed, target on the flange
+    EYE_IN_HAND = "eye_in_hand"  # camera on the flange, target fixed
+
+    @classmethod
+    def parse(cls, value: Setup | str) -> Setup:
+        """A setup from its value or the CLI's spelling (``eye-in-hand``)."""
+        if isinstance(value, Setup):
+            return value
+        try:
+            return cls(str(value).replace("-", "_"))
+        except ValueError:
+            raise CalibrationError(
+                f"hand-eye setup {value!r} is unknown; valid: eye-to-hand (camera fixed, target "
+                "on the flange), eye-in-hand (camera on the flange, target fixed)"
+            ) from None
 
 
 @dataclass(frozen=True)
@@ -74,6 +103,26 @@ class Spread:
     rotation_deg: float
 
 
+@dataclass(frozen=True)
+class Uncertainty:
+    """One standard deviation of the refined hand-eye answer (X: ``T_base_cam`` eye-to-hand,
+    ``T_flange_cam`` eye-in-hand) from its least-squares problem: ``translation_mm`` and
+    ``rotation_deg`` are the norms of the per-axis figures (axes of X's parent frame)."""
+
+    translation_mm: float
+    rotation_deg: float
+    translation_axes_mm: tuple[float, ...]
+    rotation_axes_deg: tuple[float, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "translation_mm": float(self.translation_mm),
+            "rotation_deg": float(self.rotation_deg),
+            "translation_axes_mm": [float(v) for v in self.translation_axes_mm],
+            "rotation_axes_deg": [float(v) for v in self.rotation_axes_deg],
+        }
+
+
 def camera_fields(camera: Intrinsics) -> dict[str, Any]:
     """The :class:`CalibrationResult` fields of the camera the result is for."""
     return {"K": camera.K, "D": camera.D, "width": camera.width, "height": camera.height}
@@ -99,6 +148,11 @@ class CalibrationResult:
     methods: tuple[MethodResult, ...] = ()
     spread: Spread | None = None
     T_flange_target: Array | None = None
+    setup: Setup | None = None
+    uncertainty: Uncertainty | None = None
+    T_flange_cam: Array | None = None
+    T_base_target: Array | None = None
+    flange_frame: str | None = None
     target: Mapping[str, Any] | None = field(default=None)
 
     def __post_init__(self) -> None:
@@ -111,6 +165,7 @@ class CalibrationResult:
         """YAML-ready mapping (plain Python types), the layout in the module docstring."""
         return {
             "mode": self.mode.value,
+            "setup": None if self.setup is None else self.setup.value,
             "T_base_cam": _pose_dict(self.T_base_cam),
             "intrinsics": {
                 "width": int(self.width),
@@ -139,9 +194,11 @@ class CalibrationResult:
                 "translation_mm": float(self.spread.translation_mm),
                 "rotation_deg": float(self.spread.rotation_deg),
             },
-            "T_flange_target": None
-            if self.T_flange_target is None
-            else _pose_dict(self.T_flange_target),
+            "uncertainty": None if self.uncertainty is None else self.uncertainty.to_dict(),
+            "T_flange_target": _optional_pose(self.T_flange_target),
+            "T_flange_cam": _optional_pose(self.T_flange_cam),
+            "T_base_target": _optional_pose(self.T_base_target),
+            "flange_frame": self.flange_frame,
             "target": None if self.target is None else dict(self.target),
         }
 
@@ -158,6 +215,10 @@ def _floats(a: npt.ArrayLike) -> Any:
 def _pose_dict(T: Array) -> dict[str, Any]:
     xyz, quat = to_xyz_quat(np.asarray(T, np.float64))
     return {"matrix": _floats(T), "xyz": _floats(xyz), "quat_xyzw": _floats(quat)}
+
+
+def _optional_pose(T: Array | None) -> dict[str, Any] | None:
+    return None if T is None else _pose_dict(T)
 
 
 def _need(data: Mapping[str, Any], key: str, where: str) -> Any:
@@ -242,11 +303,28 @@ def _result_from_dict(data: Any, where: str) -> CalibrationResult:
         spread = (
             None if sp is None else Spread(float(sp["translation_mm"]), float(sp["rotation_deg"]))
         )
+        un = data.get("uncertainty")
+        uncertainty = (
+            None
+            if un is None
+            else Uncertainty(
+                float(un["translation_mm"]),
+                float(un["rotation_deg"]),
+                tuple(float(v) for v in un.get("translation_axes_mm", ())),
+                tuple(float(v) for v in un.get("rotation_axes_deg", ())),
+            )
+        )
     except (KeyError, TypeError, ValueError) as err:
         raise CalibrationError(
-            f"{where}: a frame, method or spread entry is malformed: {err!r}"
+            f"{where}: a frame, method, spread or uncertainty entry is malformed: {err!r}"
         ) from err
-    ft = data.get("T_flange_target")
+    poses = {
+        key: None if data.get(key) is None else _pose(data[key], f"{where} {key}")
+        for key in ("T_flange_target", "T_flange_cam", "T_base_target")
+    }
+    setup_text = data.get("setup")
+    if setup_text is None and mode is Mode.HAND_EYE:
+        setup_text = Setup.EYE_TO_HAND.value  # files from before eye-in-hand existed
     target = data.get("target")
     if target is not None and not isinstance(target, Mapping):
         raise CalibrationError(f"{where}: target must be a mapping, got {target!r}")
@@ -261,7 +339,10 @@ def _result_from_dict(data: Any, where: str) -> CalibrationResult:
         frames=frames,
         methods=methods,
         spread=spread,
-        T_flange_target=None if ft is None else _pose(ft, f"{where} T_flange_target"),
+        setup=None if setup_text is None else Setup.parse(setup_text),
+        uncertainty=uncertainty,
+        **poses,
+        flange_frame=None if data.get("flange_frame") is None else str(data["flange_frame"]),
         target=None if target is None else dict(target),
     )
 

@@ -5,6 +5,12 @@ bags, and the speed of bag -> base-frame cloud.
   5 frames) versus the recorder's ground truth T_base_cam.
 - ``handeye_err_mm`` / ``handeye_err_deg``: eye-to-hand calibration (ChArUco on the flange,
   12 poses, joint states from the bag).
+- ``eye_in_hand_err_mm`` / ``eye_in_hand_err_deg``: eye-in-hand calibration (camera on the
+  flange, a DICT_6X6_250 ChArUco board fixed on the table, ``handeye_poses`` rendered photos
+  from random flange poses) versus the true ``T_flange_cam``; ``eye_in_hand_std_mm`` /
+  ``_deg``: the standard deviation the calibration reports for itself.
+- ``detector_recall_vs_reference``, ``corner_err_px``, ``dict_cases_found``: see
+  ``gaide.bench_detector`` (needs the pupil-apriltags reference detector).
 - ``cloud_median_err_mm``: median distance of the reconstructed cloud (with the estimated fixed
   calibration, robot removed) to the true surfaces.
 - ``frames_per_s``: 640x480 depth frames per second through the pipeline's own path: read a
@@ -22,14 +28,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
-from calibration.targets import target_from_dict
+from calibration.hand_eye import calibrate_hand_eye
+from calibration.targets import Charuco, target_from_dict
 from gaide.flows.calibrate import calibrate_bag
 from gaide.flows.perceive import perceive_bag
 from gaide.synthetic.record import load_ground_truth, record_scene, target_pose_path
 from gaide.synthetic.scene import fixed_scene, hand_eye_scene
 from gaide_core.errors import PerceptionError
-from gaide_core.transforms import transform_error
+from gaide_core.transforms import from_xyz_rpy, invert, transform_error
+from gaide_core.types import Array
 from perception.bag_reader import read_bag
 from perception.cloud import scene_cloud
 from perception.cloud_cfg import CloudCfg
@@ -93,6 +102,7 @@ def run_perception_benchmark(
             handeye_methods_spread_mm=None if spread is None else spread.translation_mm,
             handeye_methods_spread_deg=None if spread is None else spread.rotation_deg,
         )
+        out.update(eye_in_hand_benchmark(rng, poses=handeye_poses))
         # speed, on a longer recording: the pipeline's own path (read every frame, fuse,
         # one cloud), and every frame turned into a cloud on its own
         speed_scene = replace(
@@ -132,3 +142,41 @@ def run_perception_benchmark(
             speed_frames=len(depth),
         )
     return out
+
+
+#: The eye-in-hand benchmark's truth: the camera on the flange, the board on the table.
+EIH_T_FLANGE_CAM = from_xyz_rpy([0.04, -0.07, 0.06], [0.02, 0.08, -1.52])
+EIH_T_BASE_BOARD = from_xyz_rpy([0.55, 0.12, 0.01], [0.0, 0.0, 0.35])
+EIH_BOARD = Charuco(7, 5, 0.04, 0.03, "DICT_6X6_250")
+
+
+def eye_in_hand_views(
+    rng: np.random.Generator, poses: int = 12
+) -> tuple[list[npt.NDArray[np.uint8]], list[Array], Array]:
+    """Rendered photos of ``EIH_BOARD`` from a camera on the flange: (gray images, the true
+    ``T_base_flange`` of each, the camera's K)."""
+    from gaide.synthetic.marker_images import camera_matrix, centred, facing_camera, render
+
+    K = camera_matrix(848, 480, 610.0)
+    images, flanges = [], []
+    for _ in range(poses):
+        xyz = [rng.uniform(-0.04, 0.04), rng.uniform(-0.03, 0.03), rng.uniform(0.45, 0.65)]
+        T_cam_board = centred(EIH_BOARD, facing_camera(xyz, rng.uniform(-0.45, 0.45, 3), -1.0))
+        flanges.append(EIH_T_BASE_BOARD @ invert(T_cam_board) @ invert(EIH_T_FLANGE_CAM))
+        images.append(render([(EIH_BOARD, T_cam_board)], K, rng, size=(848, 480)))
+    return images, flanges, K
+
+
+def eye_in_hand_benchmark(rng: np.random.Generator, *, poses: int = 12) -> dict[str, float]:
+    """Eye-in-hand calibration on rendered photos of a fixed board (see the module doc)."""
+    images, flanges, K = eye_in_hand_views(rng, poses)
+    result = calibrate_hand_eye(images, K, None, EIH_BOARD, flanges, setup="eye-in-hand")
+    assert result.T_flange_cam is not None and result.uncertainty is not None
+    dt, dr = transform_error(result.T_flange_cam, EIH_T_FLANGE_CAM)
+    return {
+        "eye_in_hand_err_mm": dt * 1e3,
+        "eye_in_hand_err_deg": float(np.degrees(dr)),
+        "eye_in_hand_std_mm": result.uncertainty.translation_mm,
+        "eye_in_hand_std_deg": result.uncertainty.rotation_deg,
+        "eye_in_hand_rms_px": result.reprojection_rms_px,
+    }

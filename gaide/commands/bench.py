@@ -139,6 +139,7 @@ def cmd_collision(args: argparse.Namespace) -> int:
 def cmd_perception(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from gaide.bench_detector import run_detector_benchmark
     from gaide.bench_perception import run_perception_benchmark
 
     robot, spheres = robot_and_spheres(args.robot)
@@ -151,6 +152,7 @@ def cmd_perception(args: argparse.Namespace) -> int:
         handeye_poses=8 if args.quick else 12,
         progress=tqdm,
     )
+    res.update(run_detector_benchmark(seed=args.seed))
     res["wall_s"] = time.perf_counter() - t0
     print_table(
         [
@@ -158,6 +160,23 @@ def cmd_perception(args: argparse.Namespace) -> int:
             ("fixed_err_deg", f"{res['fixed_err_deg']:.3f}  (target <= 0.2)"),
             ("handeye_err_mm", f"{res['handeye_err_mm']:.2f}  (target <= 5)"),
             ("handeye_err_deg", f"{res['handeye_err_deg']:.3f}  (target <= 0.5)"),
+            ("eye_in_hand_err_mm", f"{res['eye_in_hand_err_mm']:.2f}  (target <= 2)"),
+            ("eye_in_hand_err_deg", f"{res['eye_in_hand_err_deg']:.3f}  (target <= 0.2)"),
+            (
+                "eye_in_hand_std",
+                f"{res['eye_in_hand_std_mm']:.2f} mm, {res['eye_in_hand_std_deg']:.3f} deg "
+                "(reported by the calibration)",
+            ),
+            ("dict_cases_found", f"{res['dict_cases_found']:.3f}  (target 1.0)"),
+            (
+                "detector_recall_vs_reference",
+                f"{res['detector_recall_vs_reference']:.3f}  (target >= 0.95, AprilTag 3)",
+            ),
+            (
+                "corner_err_px",
+                f"{res['corner_err_px']:.3f} median  (target <= 0.3; AprilTag 3: "
+                f"{res['corner_err_px_reference']:.3f})",
+            ),
             ("cloud_median_err_mm", f"{res['cloud_median_err_mm']:.2f}  (target <= 10)"),
             ("frames_per_s", f"{res['frames_per_s']:.1f}  (target >= 30; 640x480, fused)"),
             ("single_frame_clouds_per_s", f"{res['single_frame_clouds_per_s']:.1f}"),

@@ -13,22 +13,56 @@ from perception.cloud_cfg import CloudCfg
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    cal = sub.add_parser("calibrate", help="camera-to-base transform from a tag or board in a bag")
-    cal.add_argument("bag", help="RealSense bag (ROS1 .bag, ROS2 folder or .mcap)")
+    cal = sub.add_parser(
+        "calibrate",
+        help="camera-to-base transform from a tag or board, in a bag or in photos",
+        description="Calibrate the camera to the robot: from a RealSense bag (color frames, "
+        "joint states for hand-eye) or from photos (--images) with an intrinsics file and, for "
+        "hand-eye, a flange pose per photo (--poses).",
+    )
+    cal.add_argument("bag", nargs="?", help="RealSense bag (ROS1 .bag, ROS2 folder or .mcap)")
+    cal.add_argument("--images", help="photos instead of a bag: a folder or a glob ('cal/*.png')")
+    cal.add_argument(
+        "--intrinsics",
+        help="with --images: ROS camera_info YAML, OpenCV YAML/XML or JSON (default: estimated "
+        "from the same photos; needs a board target)",
+    )
+    cal.add_argument(
+        "--poses",
+        help="hand-eye with --images: flange pose per photo (YAML/CSV, xyz + quat_xyzw in m, "
+        "or joint positions in rad with --robot), or a folder with one file per photo",
+    )
     cal.add_argument("--mode", choices=["fixed", "hand-eye"], default="fixed")
     cal.add_argument(
+        "--setup",
+        choices=["eye-to-hand", "eye-in-hand"],
+        default="eye-to-hand",
+        help="hand-eye: camera fixed and target on the flange (eye-to-hand), or camera on the "
+        "flange and target fixed (eye-in-hand)",
+    )
+    cal.add_argument(
         "--target",
-        help="target spec, e.g. tag36h11:id=0,size=0.08 or "
-        "charuco:7x5,square=0.04,marker=0.03 (hand-eye; overrides the pose file's)",
+        help="target spec, e.g. tag36h11:id=0,size=0.08, "
+        "charuco:5x7,square=0.04,marker=0.03,dict=DICT_6X6_250 (hand-eye; overrides the pose "
+        "file's)",
     )
     cal.add_argument(
         "--target-pose", help="fixed mode: YAML with the target and its pose in the base frame"
     )
     cal.add_argument("--robot", help="robot config YAML (hand-eye; default: UR5)")
-    cal.add_argument("--flange", help="frame carrying the target (hand-eye; default: end effector)")
-    cal.add_argument("--max-frames", type=int, help="use at most this many color frames")
+    cal.add_argument("--flange", help="frame of the flange poses (hand-eye; default: end effector)")
+    cal.add_argument("--base-frame", default="base_link", help="TF name of the robot base frame")
+    cal.add_argument(
+        "--camera-frame", default="camera_color_optical_frame", help="TF name of the camera frame"
+    )
+    cal.add_argument("--max-frames", type=int, help="use at most this many color frames (bags)")
     cal.add_argument("-o", "--output", required=True, help="calibration YAML to write")
     cal.add_argument("--overlay", help="overlay PNG (default: beside the YAML)")
+    cal.add_argument(
+        "--handeye-yaml",
+        help="easy_handeye2/MoveIt-style YAML with the static TF line (default: beside the "
+        "YAML, NAME.handeye.yaml)",
+    )
     cal.add_argument("--json", help="write the figures to this JSON file")
     cal.set_defaults(func=cmd_calibrate)
 
@@ -74,61 +108,124 @@ def _floats(text: str, n: int, what: str) -> list[float]:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     from calibration.overlay import save_png
+    from calibration.result import Setup
+    from calibration.ros_export import Frames, save_handeye_yaml, static_transform_command
     from calibration.targets import parse_target
-    from gaide.flows.calibrate import calibrate_bag
+    from gaide.flows.calibrate import calibrate_bag, calibrate_images
+    from gaide_core.errors import CalibrationError
     from gaide_core.transforms import to_xyz_quat
     from planning.robot_model import load_robot
 
+    if (args.bag is None) == (args.images is None):
+        raise CalibrationError("give a bag or --images DIR|GLOB (one of them)")
+    if args.bag is not None and (args.intrinsics or args.poses):
+        raise CalibrationError("--intrinsics and --poses go with --images; a bag carries both")
     target = parse_target(args.target) if args.target else None
-    robot = load_robot(args.robot) if args.mode == "hand-eye" else None
-    run = calibrate_bag(
-        args.bag,
-        mode=args.mode,
-        robot=robot,
-        target=target,
-        target_pose=args.target_pose,
-        flange=args.flange,
-        max_frames=args.max_frames,
-    )
+    setup = Setup.parse(args.setup)
+    needs_robot = args.mode == "hand-eye" or args.robot is not None
+    robot = load_robot(args.robot) if needs_robot else None
+    intrinsics_rms = None
+    if args.bag is not None:
+        run = calibrate_bag(
+            args.bag,
+            mode=args.mode,
+            robot=robot,
+            target=target,
+            target_pose=args.target_pose,
+            flange=args.flange,
+            max_frames=args.max_frames,
+            setup=setup,
+        )
+        res, overlay_image = run.result, run.overlay
+    else:
+        photos = calibrate_images(
+            args.images,
+            mode=args.mode,
+            intrinsics=args.intrinsics,
+            poses=args.poses,
+            robot=robot,
+            target=target,
+            target_pose=args.target_pose,
+            flange=args.flange,
+            setup=setup,
+        )
+        res, overlay_image, intrinsics_rms = (
+            photos.result,
+            photos.overlay,
+            photos.intrinsics_rms_px,
+        )
     out = Path(args.output)
     overlay = Path(args.overlay) if args.overlay else out.with_suffix(".overlay.png")
-    save_png(overlay, run.overlay)
+    handeye = Path(args.handeye_yaml) if args.handeye_yaml else out.with_suffix(".handeye.yaml")
+    flange = args.flange or (robot.config.end_effector if robot is not None else "tool0")
+    frames = Frames(args.base_frame, flange, args.camera_frame)
+    written: list[Path] = []
     try:
-        run.result.save_yaml(out)
+        written.append(save_png(overlay, overlay_image))
+        written.append(save_handeye_yaml(res, frames, handeye))
+        res.save_yaml(out)
     except Exception:
-        overlay.unlink(missing_ok=True)
+        for path in written:
+            path.unlink(missing_ok=True)
         raise
-    res = run.result
     used = sum(f.used for f in res.frames)
     xyz, quat = to_xyz_quat(res.T_base_cam)
     rows = [
-        ("mode", res.mode.value if hasattr(res.mode, "value") else str(res.mode)),
+        ("mode", res.mode.value + ("" if res.setup is None else f" ({res.setup.value})")),
         ("frames used", f"{used} of {len(res.frames)}"),
         ("reprojection RMS", f"{res.reprojection_rms_px:.3f} px"),
-        ("T_base_cam xyz", f"{np.round(xyz, 4).tolist()} m"),
-        ("T_base_cam quat", f"{np.round(quat, 5).tolist()} (x, y, z, w)"),
     ]
-    if res.spread is not None:
+    if intrinsics_rms is not None:
+        rows.append(("intrinsics", f"estimated from the photos, RMS {intrinsics_rms:.3f} px"))
+    if res.T_flange_cam is not None:
+        fxyz, fquat = to_xyz_quat(res.T_flange_cam)
+        rows += [
+            ("T_flange_cam xyz", f"{np.round(fxyz, 4).tolist()} m"),
+            ("T_flange_cam quat", f"{np.round(fquat, 5).tolist()} (x, y, z, w)"),
+        ]
+    else:
+        rows += [
+            ("T_base_cam xyz", f"{np.round(xyz, 4).tolist()} m"),
+            ("T_base_cam quat", f"{np.round(quat, 5).tolist()} (x, y, z, w)"),
+        ]
+    if res.uncertainty is not None:
         rows.append(
             (
-                "methods' spread",
-                f"{res.spread.translation_mm:.2f} mm, {res.spread.rotation_deg:.3f} deg",
+                "standard deviation",
+                f"{res.uncertainty.translation_mm:.2f} mm, {res.uncertainty.rotation_deg:.3f} deg",
             )
         )
-    rows += [("calibration", str(out)), ("overlay", str(overlay))]
+    dropped = [f for f in res.frames if f.rms_px is not None and not f.used]
+    for f in dropped:
+        rows.append((f"frame {f.index} dropped", f.reason))
+    rows += [("calibration", str(out)), ("hand-eye YAML", str(handeye)), ("overlay", str(overlay))]
     print_table(rows, "calibration")
+    tf_line = static_transform_command(res, frames)
+    print(tf_line)
     if args.json:
-        figures = {
+        figures: dict[str, object] = {
             "reprojection_rms_px": res.reprojection_rms_px,
             "frames_used": used,
             "frames": len(res.frames),
             "T_base_cam": res.T_base_cam.tolist(),
             "calibration": str(out),
             "overlay": str(overlay),
+            "handeye_yaml": str(handeye),
+            "static_transform_publisher": tf_line,
+            "frame_rms_px": [f.rms_px for f in res.frames],
         }
+        if res.setup is not None:
+            figures["setup"] = res.setup.value
+        if res.T_flange_cam is not None:
+            figures["T_flange_cam"] = res.T_flange_cam.tolist()
         if res.spread is not None:
             figures["spread_mm"] = res.spread.translation_mm
             figures["spread_deg"] = res.spread.rotation_deg
+        if res.uncertainty is not None:
+            figures["std_mm"] = res.uncertainty.translation_mm
+            figures["std_deg"] = res.uncertainty.rotation_deg
+        if intrinsics_rms is not None:
+            figures["intrinsics_rms_px"] = intrinsics_rms
         write_json(args.json, figures)
     return 0
 

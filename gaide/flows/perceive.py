@@ -79,6 +79,17 @@ def perceive_bag(
         )
         check_intrinsics(calib, frames)
         T_base_cam = calib.T_base_cam
+        if calib.T_flange_cam is not None:
+            # Eye-in-hand: the camera is where the flange holds it at the recorded joints.
+            q_cam = joints if joints is not None else recorded_configuration(frames, robot)
+            if q_cam is None:
+                raise PerceptionError(
+                    f"{bag}: the calibration is eye-in-hand (camera on the flange), so the "
+                    "camera pose needs the robot's joints: record joint states or give --joints"
+                )
+            q_cam = robot.check_configuration(q_cam, "joints for the camera pose")
+            flange = calib.flange_frame or robot.config.end_effector
+            T_base_cam = robot.frame_pose(q_cam, flange) @ calib.T_flange_cam
     # the bag's joint states matter only to the self-filter
     q = joints if joints is not None or not self_filter else recorded_configuration(frames, robot)
     robot_spheres = None

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from calibration.hand_eye import METHODS, calibrate_hand_eye
-from calibration.result import Mode
-from calibration.targets import SingleTag
+from calibration.result import Mode, Setup
+from calibration.targets import Charuco, SingleTag
 from gaide_core.errors import CalibrationError
 from gaide_core.transforms import from_xyz_rpy, invert, make_transform, transform_error
 from tests.calibration.synth import K, look_at_target, render
@@ -111,3 +111,59 @@ def test_pose_count_must_match(rng: np.random.Generator) -> None:
     images, flanges = _scene(rng, 3)
     with pytest.raises(CalibrationError, match="one per image"):
         calibrate_hand_eye(images, K, None, TAG, flanges[:2])
+
+
+T_FLANGE_CAM = from_xyz_rpy([0.03, -0.06, 0.05], [0.0, 0.05, -1.5])
+T_BASE_BOARD = from_xyz_rpy([0.6, 0.1, 0.0], [0.0, 0.0, 0.4])
+BOARD = Charuco(7, 5, 0.04, 0.03, "DICT_6X6_250")
+
+
+def _eye_in_hand_scene(
+    rng: np.random.Generator, n: int
+) -> tuple[list[np.ndarray], list[np.ndarray]]:  # type: ignore[type-arg]
+    """A camera on the flange looking at a ChArUco board fixed on the table."""
+    images, flanges = [], []
+    for _ in range(n):
+        p = [rng.uniform(-0.18, -0.1), rng.uniform(-0.12, -0.06), rng.uniform(0.45, 0.65)]
+        T_cam_board = look_at_target(p, rng.uniform(-0.45, 0.45, 3), -1.0)
+        flanges.append(T_BASE_BOARD @ invert(T_cam_board) @ invert(T_FLANGE_CAM))
+        images.append(render(BOARD, T_cam_board, rng))
+    return images, flanges
+
+
+def test_eye_in_hand_recovers_T_flange_cam(rng: np.random.Generator) -> None:
+    images, flanges = _eye_in_hand_scene(rng, 10)
+    result = calibrate_hand_eye(images, K, None, BOARD, flanges, setup="eye-in-hand")
+    assert result.setup is Setup.EYE_IN_HAND
+    assert result.T_flange_cam is not None and result.T_base_target is not None
+    dt, dr = transform_error(result.T_flange_cam, T_FLANGE_CAM)
+    assert dt < 0.002 and np.degrees(dr) < 0.2, (dt * 1e3, np.degrees(dr))
+    dt, dr = transform_error(result.T_base_target, T_BASE_BOARD)
+    assert dt < 0.002 and np.degrees(dr) < 0.2, (dt * 1e3, np.degrees(dr))
+    # T_base_cam: the camera where the first image was taken.
+    dt, _ = transform_error(result.T_base_cam, flanges[0] @ T_FLANGE_CAM)
+    assert dt < 0.002
+    # The standard deviation is small on clean data and covers the true error.
+    assert result.uncertainty is not None
+    assert 0 < result.uncertainty.translation_mm < 1.0
+    assert 0 < result.uncertainty.rotation_deg < 0.1
+    assert len(result.uncertainty.translation_axes_mm) == 3
+    assert result.T_flange_target is None
+
+
+def test_eye_to_hand_reports_uncertainty_that_grows_with_noise(rng: np.random.Generator) -> None:
+    images, flanges = _scene(rng, 10)
+    clean = calibrate_hand_eye(images, K, None, TAG, flanges)
+    assert clean.setup is Setup.EYE_TO_HAND and clean.uncertainty is not None
+    jitter = [T @ from_xyz_rpy(rng.normal(0, 0.002, 3), rng.normal(0, 0.004, 3)) for T in flanges]
+    noisy = calibrate_hand_eye(images, K, None, TAG, jitter)
+    assert noisy.uncertainty is not None
+    assert noisy.uncertainty.translation_mm > 2 * clean.uncertainty.translation_mm
+    dt, _ = transform_error(noisy.T_base_cam, T_BASE_CAM)
+    assert dt * 1e3 < 5 * noisy.uncertainty.translation_mm
+
+
+def test_unknown_setup(rng: np.random.Generator) -> None:
+    images, flanges = _scene(rng, 3)
+    with pytest.raises(CalibrationError, match="eye-in-hand"):
+        calibrate_hand_eye(images, K, None, TAG, flanges, setup="eye-on-wrist")

@@ -15,9 +15,12 @@ from calibration.result import (
     FrameResidual,
     MethodResult,
     Mode,
+    Setup,
     Spread,
+    Uncertainty,
     load_calibration,
 )
+from calibration.ros_export import Frames, handeye_yaml, save_handeye_yaml, static_transform_command
 from gaide_core.errors import CalibrationError
 from gaide_core.transforms import make_transform
 
@@ -61,6 +64,20 @@ def results(draw: st.DrawFn) -> CalibrationResult:
         methods=tuple(draw(st.lists(methods, max_size=3))),
         spread=draw(st.none() | st.builds(Spread, positive, positive)),
         T_flange_target=draw(st.none() | poses()),
+        setup=draw(st.none() | st.sampled_from(Setup)),
+        uncertainty=draw(
+            st.none()
+            | st.builds(
+                Uncertainty,
+                positive,
+                positive,
+                st.tuples(positive, positive, positive),
+                st.tuples(positive, positive, positive),
+            )
+        ),
+        T_flange_cam=draw(st.none() | poses()),
+        T_base_target=draw(st.none() | poses()),
+        flange_frame=draw(st.none() | st.just("tool0")),
         target=draw(st.none() | st.just({"type": "tag36h11", "id": 3, "size": 0.08})),
     )
 
@@ -80,11 +97,50 @@ def test_yaml_round_trip(result: CalibrationResult) -> None:
     for a, b in zip(back.methods, result.methods, strict=True):
         assert np.array_equal(a.T_base_cam, b.T_base_cam) and a.rms_px == b.rms_px
     assert back.spread == result.spread
-    if result.T_flange_target is None:
-        assert back.T_flange_target is None
+    for key in ("T_flange_target", "T_flange_cam", "T_base_target"):
+        mine, theirs = getattr(result, key), getattr(back, key)
+        assert (theirs is None) if mine is None else np.array_equal(theirs, mine)
+    if result.setup is None and result.mode is Mode.HAND_EYE:
+        assert back.setup is Setup.EYE_TO_HAND  # files from before eye-in-hand
     else:
-        assert np.array_equal(back.T_flange_target, result.T_flange_target)  # type: ignore[arg-type]
+        assert back.setup == result.setup
+    assert back.uncertainty == result.uncertainty
+    assert back.flange_frame == result.flange_frame
     assert back.target == result.target
+
+
+def test_ros_exports_publish_the_transform_that_holds(tmp_path: Path) -> None:
+    T_base_cam = make_transform(Rotation.from_euler("z", 0.5).as_matrix(), np.array([1.0, 0, 0.5]))
+    T_flange_cam = make_transform(np.eye(3), np.array([0.0, 0.05, 0.1]))
+    base = dict(
+        T_base_cam=T_base_cam,
+        K=np.array([[600.0, 0, 320], [0, 600, 240], [0, 0, 1]]),
+        D=np.zeros(5),
+        width=640,
+        height=480,
+        reprojection_rms_px=0.2,
+        frames=(),
+    )
+    frames = Frames("base_link", "tool0", "cam_optical")
+    fixed = CalibrationResult(mode=Mode.FIXED, **base)  # type: ignore[arg-type]
+    line = static_transform_command(fixed, frames)
+    assert line.startswith("ros2 run tf2_ros static_transform_publisher --x 1 --y 0 --z 0.5")
+    assert line.endswith("--frame-id base_link --child-frame-id cam_optical")
+    eih = CalibrationResult(
+        mode=Mode.HAND_EYE,
+        setup=Setup.EYE_IN_HAND,
+        T_flange_cam=T_flange_cam,
+        **base,  # type: ignore[arg-type]
+    )
+    data = yaml.safe_load(handeye_yaml(eih, frames))
+    assert data["parameters"]["calibration_type"] == "eye_in_hand"
+    assert data["parent_frame"] == "tool0"
+    assert data["transform"]["translation"] == {"x": 0.0, "y": 0.05, "z": 0.1}
+    assert data["transform"]["rotation"]["w"] == pytest.approx(1.0)
+    assert "--frame-id tool0" in static_transform_command(eih, frames)
+    path = save_handeye_yaml(eih, frames, tmp_path / "he.yaml")
+    text = path.read_text()
+    assert text.startswith("# ros2 run tf2_ros") and yaml.safe_load(text) == data
 
 
 def _good(tmp_path: Path) -> dict:  # type: ignore[type-arg]

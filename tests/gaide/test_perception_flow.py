@@ -1,19 +1,21 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+from calibration.result import Mode, Setup
 from calibration.targets import target_from_dict
 from gaide.flows.calibrate import calibrate_bag
-from gaide.flows.perceive import perceive_bag
+from gaide.flows.perceive import perceive_bag, recorded_configuration
 from gaide.synthetic.record import load_ground_truth, record_scene, target_pose_path
 from gaide.synthetic.scene import fixed_scene, hand_eye_scene
 from gaide_core.errors import CalibrationError, PerceptionError
-from gaide_core.transforms import transform_error
+from gaide_core.transforms import invert, transform_error
 from perception.bag_reader import read_bag
 from perception.frames import BagLayout
 from planning.checker import make_checker
@@ -58,6 +60,27 @@ def test_fixed_calibration_and_cloud_match_the_ground_truth(
     centers = checker.sphere_centers(q[None])[0]
     d = np.linalg.norm(cloud.points[:, None] - centers[None], axis=-1) - checker.radii
     assert d.min() > 0.0
+
+
+def test_eye_in_hand_calibration_places_the_camera_from_the_joints(
+    fixed_bag: Path, robot: RobotModel, spheres: SphereModel
+) -> None:
+    """A camera on the flange: its pose is FK(recorded joints) @ T_flange_cam."""
+    run = calibrate_bag(fixed_bag, mode="fixed", target_pose=target_pose_path(fixed_bag))
+    q = recorded_configuration(read_bag(fixed_bag), robot)
+    assert q is not None
+    T_base_flange = robot.frame_pose(q, robot.config.end_effector)
+    moved = replace(
+        run.result,
+        mode=Mode.HAND_EYE,
+        setup=Setup.EYE_IN_HAND,
+        T_base_cam=np.eye(4),  # where the camera was during calibration: not used
+        T_flange_cam=invert(T_base_flange) @ run.result.T_base_cam,
+        flange_frame=robot.config.end_effector,
+    )
+    fixed_cloud, _, _ = perceive_bag(fixed_bag, run.result, robot, spheres)
+    eih_cloud, _, _ = perceive_bag(fixed_bag, moved, robot, spheres)
+    np.testing.assert_allclose(eih_cloud.points, fixed_cloud.points, atol=1e-9)
 
 
 def test_hand_eye_calibration_from_joint_states(
