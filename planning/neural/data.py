@@ -12,15 +12,21 @@ Path index i is the problem of category ``categories[i % C]`` in scene ``s = i /
 one scene serves C start/goal pairs and is stored once per shard. A problem the oracle cannot
 solve is left out and counted in the manifest.
 
-A shard's npz holds ``scenes`` (U, S, 3) float32 surface clouds (base frame, m), one per
-distinct scene, ``scene_of`` (M,) int32 (each path's row of ``scenes``), ``q`` (sum K, dof)
+A shard's npz holds ``worlds`` (uint8: the UTF-8 JSON list of the distinct scenes' obstacle
+primitives, :meth:`PrimitiveWorld.to_dict`), ``scene_of`` (M,) int32 (each path's entry of
+``worlds``), ``q`` (sum K, dof)
 float32 waypoints of all paths back to back, ``offsets`` (M + 1,) int64 where each path
 starts in ``q``, ``families`` (M,) int8 (index into the manifest's families), ``categories``
 (M,) int8 (index into :data:`~planning.families.CATEGORIES`), ``seeds`` (M,) int64 and
 ``costs`` (M,) float64. Its bytes depend on (settings, shard index) only: the process pool
 and a Ray cluster write identical files (:mod:`planning.neural.data_backends`). The robot
-cloud at each q follows from FK and is not stored. Format 1 (one scene per path, no
-categories) is still read.
+cloud at each q follows from FK and is not stored.
+
+A scene's surface cloud (``scene_points`` points) is drawn from its world when the data is
+loaded, with a generator seeded by (family, seed, the world's digest): the same points every
+time, so storing the world (about 1 kB) instead of the cloud (24 kB) loses nothing and makes
+a 50,000-path data set 30 MB instead of 250 MB. Format 2 (clouds stored, ``scenes`` (U, S,
+3)) and format 1 (one scene per path, no categories) are still read.
 """
 
 from __future__ import annotations
@@ -43,14 +49,15 @@ from planning.checker import CHECKERS, make_checker
 from planning.families import generate_problem
 from planning.family_names import CATEGORIES, FAMILIES, split_seed
 from planning.oracle import OracleCfg, oracle_path
+from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 from planning.scene_views import surface_cloud
 from planning.sphere_model import SphereModel
 
 log = logging.getLogger(__name__)
 
-FORMAT = "gaide-data/2"
-READABLE = ("gaide-data/1", FORMAT)
+FORMAT = "gaide-data/3"
+READABLE = ("gaide-data/1", "gaide-data/2", FORMAT)
 MANIFEST = "manifest.json"
 
 
@@ -106,7 +113,7 @@ def shard_name(k: int) -> str:
 @dataclass(frozen=True)
 class PathRow:
     scene_key: str  # the scene's identity: family, seed and a digest of its obstacles
-    cloud: npt.NDArray[np.float32]  # (S, 3) m
+    world: str  # the scene's obstacles: canonical JSON of PrimitiveWorld.to_dict()
     path: npt.NDArray[np.float32]  # (K, dof) rad
     family: int
     category: int
@@ -127,17 +134,35 @@ def one_path(cfg: DataCfg, index: int, robot: RobotModel, spheres: SphereModel) 
     res = oracle_path(checker, problem.start, problem.goal, rng, oracle)
     if res.path is None:
         return f"{fam} seed {seed} {category}: oracle {res.status.value}: {res.detail}"
-    digest = hashlib.sha256(json.dumps(problem.world.to_dict()).encode()).hexdigest()[:16]
-    # The cloud depends on the scene alone: every path of the scene stores the same one.
-    scene_rng = np.random.default_rng([FAMILIES.index(fam), seed, int(digest, 16) % 2**32])
+    world = world_json(problem.world.to_dict())
     return PathRow(
-        scene_key=f"{fam}/{seed}/{digest}",
-        cloud=surface_cloud(problem.world, cfg.scene_points, scene_rng).astype(np.float32),
+        scene_key=f"{fam}/{seed}/{world_digest(world)}",
+        world=world,
         path=res.path.astype(np.float32),
         family=cfg.families.index(fam),
         category=CATEGORIES.index(category),
         seed=seed,
         cost=res.cost,
+    )
+
+
+def world_json(world: Any) -> str:
+    """Canonical JSON of a world's ``to_dict()``: the same text for the same world."""
+    return json.dumps(world, sort_keys=True, separators=(",", ":"))
+
+
+def world_digest(world: str) -> str:
+    """16 hex digits identifying a world (of its canonical JSON)."""
+    return hashlib.sha256(world.encode()).hexdigest()[:16]
+
+
+def scene_cloud(world: str, family: str, seed: int, points: int) -> npt.NDArray[np.float32]:
+    """The (points, 3) surface cloud of a stored scene: the same on every load."""
+    rng = np.random.default_rng(
+        [FAMILIES.index(family), seed, int(world_digest(world), 16) % 2**32]
+    )
+    return surface_cloud(PrimitiveWorld.from_dict(json.loads(world)), points, rng).astype(
+        np.float32
     )
 
 
@@ -170,10 +195,9 @@ def shard_bytes(rows: list[PathRow], dof: int) -> bytes:
     """The npz of ``rows``, byte for byte the same for the same rows (no time stamps)."""
     keys = list(dict.fromkeys(r.scene_key for r in rows))
     paths = [r.path for r in rows]
+    worlds = [next(r.world for r in rows if r.scene_key == key) for key in keys]
     arrays = {
-        "scenes": np.stack([next(r.cloud for r in rows if r.scene_key == key) for key in keys])
-        if rows
-        else np.zeros((0, 0, 3), np.float32),
+        "worlds": np.frombuffer(json.dumps(worlds).encode(), np.uint8),
         "scene_of": np.array([keys.index(r.scene_key) for r in rows], np.int32),
         "q": np.concatenate(paths) if rows else np.zeros((0, dof), np.float32),
         "offsets": np.concatenate([[0], np.cumsum([len(p) for p in paths])]).astype(np.int64),
@@ -221,8 +245,23 @@ class PathSet:
     max_step: float
 
 
+def _shard_scenes(z: Any, families: tuple[str, ...], points: int) -> npt.NDArray[np.float32]:
+    """(U, S, 3) clouds of a shard's scenes: stored (formats 1, 2) or drawn from its worlds."""
+    if "scenes" in z:
+        return np.asarray(z["scenes"], np.float32)
+    worlds = json.loads(bytes(z["worlds"]).decode())
+    scene_of, fams, seeds = z["scene_of"], z["families"], z["seeds"]
+    clouds = []
+    for u, world in enumerate(worlds):
+        row = int(np.flatnonzero(scene_of == u)[0])
+        clouds.append(scene_cloud(world, families[int(fams[row])], int(seeds[row]), points))
+    return np.stack(clouds)
+
+
 def load_paths(path: str | Path) -> PathSet:
     manifest = read_manifest(path)
+    families = tuple(manifest["settings"]["families"])
+    points = int(manifest["settings"]["scene_points"])
     scenes, scene_of, paths, fams, cats = [], [], [], [], []
     rows = 0
     for s in manifest["shards"]:
@@ -231,16 +270,17 @@ def load_paths(path: str | Path) -> PathSet:
             with np.load(f) as z:
                 if s["paths"] == 0:
                     continue
-                scenes.append(z["scenes"])
+                shard_scenes = _shard_scenes(z, families, points)
+                scenes.append(shard_scenes)
                 n = len(z["offsets"]) - 1
                 own = z["scene_of"].astype(np.int64) if "scene_of" in z else np.arange(n)
                 scene_of.append(own + rows)
-                rows += len(z["scenes"])
+                rows += len(shard_scenes)
                 off, q = z["offsets"], z["q"]
                 paths += [q[a:b] for a, b in itertools.pairwise(off)]
                 fams.append(z["families"])
                 cats.append(z["categories"] if "categories" in z else np.full(n, -1, np.int8))
-        except (OSError, ValueError, KeyError) as err:
+        except (OSError, ValueError, KeyError, IndexError, GaideError) as err:
             raise ModelError(
                 f"{f}: corrupt or missing shard ({err}); delete it and run `gaide data generate` again to remake it"
             ) from err
@@ -252,6 +292,6 @@ def load_paths(path: str | Path) -> PathSet:
         paths=paths,
         families=np.concatenate(fams),
         categories=np.concatenate(cats),
-        family_names=tuple(manifest["settings"]["families"]),
+        family_names=families,
         max_step=float(manifest["settings"]["max_step"]),
     )
