@@ -23,6 +23,7 @@ centres at (0.5, 0.5); mean offset measured +0.49, +0.50), which is removed. It 
 from __future__ import annotations
 
 import time
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -48,8 +49,10 @@ REFERENCE_ORDER = [1, 0, 3, 2]
 REFERENCE_OFFSET = 0.5
 
 
+@lru_cache(maxsize=1)
 def reference_detector() -> Any:
-    """AprilTag 3 (pupil-apriltags) for tag36h11 at full resolution, one thread."""
+    """AprilTag 3 (pupil-apriltags) for tag36h11 at full resolution, one thread; one per
+    process, never destroyed (see ``_kept``)."""
     try:
         from pupil_apriltags import Detector  # type: ignore[import-untyped]
     except ImportError as err:
@@ -57,7 +60,21 @@ def reference_detector() -> Any:
             "the detector benchmark compares with AprilTag 3: install the dev dependency "
             "pupil-apriltags (pip install pupil-apriltags, or pip install -e '.[dev]')"
         ) from err
-    return Detector(families="tag36h11", nthreads=1, quad_decimate=1.0, refine_edges=1)
+    return _kept(Detector)(families="tag36h11", nthreads=1, quad_decimate=1.0, refine_edges=1)
+
+
+def _kept(detector_class: Any) -> Any:
+    """``detector_class`` without its destructor. pupil-apriltags' ``Detector.__del__`` frees
+    the tag families before the C detector that still points at them, a use after free that
+    corrupted the heap and aborted the process later, in an unrelated allocation (seen with
+    pupil-apriltags 1.0.4; glibc's malloc check shows it in ``__del__``). The one detector a
+    process makes is left for the OS to reclaim."""
+
+    class KeptDetector(detector_class):  # type: ignore[misc, valid-type]
+        def __del__(self) -> None:
+            pass
+
+    return KeptDetector
 
 
 def reference_corners(detector: Any, image: Any) -> dict[int, Array]:
