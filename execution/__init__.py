@@ -1,6 +1,7 @@
 """Execution: Ruckig time parameterization that keeps the checked path, exports a controller
-can run (CSV, JSON, ROS1/ROS2 bags), PyBullet simulation with the controller output logged,
-and comparison of a plan with a controller log.
+can run (CSV, JSON, ROS1/ROS2 bags, a URScript program, a ros2_control goal), PyBullet
+simulation through a servo model of the arm's controller with its output logged, and
+comparison of a plan with a controller log.
 
 Depends on ``core`` and ``planning`` only (robot model, collision checker, worlds).
 
@@ -14,7 +15,8 @@ Depends on ``core`` and ``planning`` only (robot model, collision checker, world
 - files: ``trajectory_io`` (CSV, JSON), ``ros_bags`` (JointTrajectory and JointState bags),
   ``joint_log`` (log CSV of a ``gaide_core.joints.JointStates`` series), ``export`` (by
   suffix, all or nothing, with ``gaide_core.atomic``);
-- execution: ``sim_cfg`` (SimCfg), ``sim_world`` and ``simulate`` (PyBullet), ``compare``
+- execution: ``sim_cfg`` (SimCfg), ``servo`` (ServoCfg: a real arm's controller), ``sim_world``
+  and ``simulate`` (PyBullet), ``compare``
   (plan vs log), ``plots``;
 - ``bench_timing``: ``gaide bench timing``.
 """
@@ -30,14 +32,17 @@ __all__ = [
     "path_input",
     "plots",
     "recheck",
+    "ros2_goal",
     "ros_bags",
     "ruckig_segments",
     "ruckig_timing",
+    "servo",
     "sim_cfg",
     "sim_world",
     "simulate",
     "timing_cfg",
     "trajectory",
     "trajectory_io",
+    "urscript",
     "verify",
 ]

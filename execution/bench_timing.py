@@ -17,10 +17,20 @@ result is checked independently by re-sampling its Ruckig segments at 1 kHz:
   parameterization, everything included (path check, shortcut, blends, collision re-check,
   sampling); each path is timed ``repeats`` times and counts with its median (the machines
   are shared);
-- ``sim_tracking_rms_rad``: RMS tracking error of PyBullet's position controller over every
-  joint and sample of every simulated blended trajectory (in the problem's scene; contacts
-  are counted apart, as paths whose contacts the URDF meshes confirm and paths where only
-  PyBullet's convex hulls touch).
+- ``sim_tracking_rms_rad``, ``sim_tracking_max_rad``: RMS and largest tracking error of the
+  simulated controller (``sim``, default the servo model of :mod:`execution.servo`) over
+  every joint and cycle of every simulated blended trajectory, in the problem's scene,
+  against the plan at the same time (the servo's delay included;
+  ``sim_tracking_max_after_delay_rad`` takes it out). No target: they describe the
+  controller model, not the timing. Contacts are counted apart, as paths whose contacts the
+  URDF meshes confirm and paths where only PyBullet's convex hulls touch;
+- ``sim_delay_recovered_ms``: the median over the paths of the delay
+  :func:`execution.compare.compare` finds between each plan and its simulated log, beside
+  ``sim_delay_configured_ms`` (the servo's ``delay_cycles / rate_hz``);
+  ``sim_delay_error_ms_max`` is the largest difference of a path;
+- ``sim_min_clearance_m``: the smallest sphere-world clearance of the achieved
+  configurations over every path (the problem's checker), and ``sim_clearance_violations``
+  the paths whose executed motion came closer than the checker's margin.
 
 Runs in one process, one path at a time, so that the times are not shared with other work
 of the benchmark.
@@ -30,12 +40,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from execution.compare import compare
 from execution.ruckig_timing import RuckigParameterizer
+from execution.sim_cfg import SimCfg
 from execution.simulate import simulate
 from execution.timing_cfg import TimingCfg, TimingMode
 from execution.verify import limit_violations, path_deviation, swept_collisions
@@ -57,6 +69,7 @@ class TimingBenchCfg:
     rate_hz: float = 500.0  # Hz, controller rate
     verify_rate_hz: float = 1000.0  # Hz, independent re-sampling
     simulate: bool = True
+    sim: SimCfg = field(default_factory=SimCfg)  # the simulated controller (servo by default)
     repeats: int = 3  # blended parameterizations timed per path (their median counts)
 
     def __post_init__(self) -> None:
@@ -129,15 +142,24 @@ def run_timing_benchmark(
             "blended_invalid_motions": swept_collisions(tb, checker, rate_hz=cfg.verify_rate_hz),
         }
         if cfg.simulate:
-            sim = simulate(tb, robot, primitives=problem.world)
+            sim = simulate(tb, robot, primitives=problem.world, cfg=cfg.sim, checker=checker)
             squared += float(np.sum(sim.error**2))
             samples += sim.error.size
             run["sim_rms_rad"] = sim.rms_all_rad
-            run["sim_max_rad"] = float(sim.max_rad.max())
+            run["sim_max_rad"] = sim.max_all_rad
+            run["sim_max_after_delay_rad"] = sim.max_after_delay_all_rad
+            run["sim_delay_recovered_ms"] = 1e3 * compare(tb, sim.log).delay_s
+            clearance = sim.executed_min_clearance_m  # inf in an empty world: JSON has none
+            run["sim_min_clearance_m"] = clearance if np.isfinite(clearance or np.nan) else None
+            run["sim_clearance_ok"] = sim.clearance_ok
+            run["sim_limited_cycles"] = sim.limited_cycles
             run["sim_contacts"] = len(sim.contacts)
             run["sim_status"] = sim.status.value
         runs.append(run)
     multi = [r for r in runs if r["segments_after_shortcut"] >= 3]
+    simulated = [r for r in runs if "sim_rms_rad" in r]
+    configured = 1e3 * (cfg.sim.servo.delay_s if cfg.sim.controller == "servo" else 0.0)
+    recovered = [r["sim_delay_recovered_ms"] for r in simulated]
     stages = {
         k: _median([r["ms_stages"][k] for r in runs])
         for k in ("ms_check", "ms_shortcut", "ms_timing", "ms_recheck", "ms_sample")
@@ -149,6 +171,18 @@ def run_timing_benchmark(
         "blended_collisions": sum(r["blended_invalid_motions"] > 0 for r in runs),
         "ms_per_path": _median([r["ms"] for r in runs]),
         "sim_tracking_rms_rad": float(np.sqrt(squared / samples)) if samples else None,
+        "sim_tracking_max_rad": max((r["sim_max_rad"] for r in simulated), default=None),
+        "sim_tracking_max_after_delay_rad": max(
+            (r["sim_max_after_delay_rad"] for r in simulated), default=None
+        ),
+        "sim_delay_configured_ms": configured if simulated else None,
+        "sim_delay_recovered_ms": _median(recovered),
+        "sim_delay_error_ms_max": max((abs(d - configured) for d in recovered), default=None),
+        "sim_min_clearance_m": min(
+            (r["sim_min_clearance_m"] for r in simulated if r["sim_min_clearance_m"] is not None),
+            default=None,
+        ),
+        "sim_clearance_violations": sum(r["sim_clearance_ok"] is False for r in simulated),
         "n_paths": len(runs),
         "n_multi_segment": len(multi),
         "planning_failures": failures,
@@ -158,6 +192,7 @@ def run_timing_benchmark(
         "fallbacks": sum(r["fallbacks"] for r in runs),
         "sim_contact_paths": sum(r.get("sim_status") == "contact" for r in runs),
         "sim_hull_only_paths": sum(r.get("sim_status") == "hull_only" for r in runs),
+        "sim_controller": cfg.sim.controller if simulated else None,
         "rate_hz": cfg.rate_hz,
         "verify_rate_hz": cfg.verify_rate_hz,
         "families": list(cfg.families),

@@ -9,6 +9,8 @@
    positions, so that the robot's rest before and after the motion does not pull the
    alignment. ``delay_s`` is that start minus the expected one (``expected_start_s`` in
    the log's time from its first sample, default 0: the log starts when the plan does).
+   Measured on :mod:`execution.servo`'s simulated logs (6-16 ms of delay, 125-500 Hz
+   servos): within 0.1 ms of the configured delay for plans at 50-500 Hz, 0.25 ms at 25 Hz.
 3. Tracking error at the plan's samples inside the overlap: log position (linearly
    interpolated at the aligned time) minus planned position; RMS and largest per joint.
 

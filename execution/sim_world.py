@@ -71,6 +71,8 @@ class SimWorld:
             pb.setGravity(0, 0, -9.81 if gravity else 0.0, physicsClientId=self.client)
             self._load_robot()
             self.scene_labels: dict[int, str] = {}
+            self.voxel_bodies: set[int] = set()
+            self.voxel = voxel
             if primitives is not None:
                 self._add_primitives(primitives)
             if cloud is not None:
@@ -159,18 +161,23 @@ class SimWorld:
             raise ExecutionError(f"voxel must be > 0 m, got {voxel}")
         cells = np.unique(np.floor(points / voxel).astype(np.int64), axis=0)
         centres = (cells + 0.5) * voxel
-        shape = pb.createCollisionShape(
-            pb.GEOM_BOX, halfExtents=[voxel / 2] * 3, physicsClientId=self.client
-        )
-        bodies = pb.createMultiBody(
-            baseMass=0,
-            baseCollisionShapeIndex=shape,
-            batchPositions=centres.tolist(),
-            physicsClientId=self.client,
-        )
-        ids = bodies if isinstance(bodies, (list, tuple)) else [bodies]
-        for body, centre in zip(ids, centres, strict=False):
-            self.scene_labels[int(body)] = f"voxel at {np.round(centre, 3).tolist()}"
+        # Static bodies of 16 boxes each (the most one createCollisionShapeArray keeps): a
+        # step costs per body (1,800 one-box bodies: ~4 ms a step; 115 of 16: ~0.1 ms).
+        c = self.client
+        for s in range(0, len(centres), 16):
+            part = centres[s : s + 16]
+            shape = pb.createCollisionShapeArray(
+                shapeTypes=[pb.GEOM_BOX] * len(part),
+                halfExtents=[[voxel / 2] * 3] * len(part),
+                collisionFramePositions=part.tolist(),
+                physicsClientId=c,
+            )
+            body = int(
+                pb.createMultiBody(baseMass=0, baseCollisionShapeIndex=shape, physicsClientId=c)
+            )
+            self.scene_labels[body] = "voxel"
+            self.voxel_bodies.add(body)
+        self.voxel = voxel
         log.debug("cloud: %d points as %d voxel boxes of %.3f m", len(points), len(centres), voxel)
 
     # -- running -------------------------------------------------------------------------
@@ -216,7 +223,12 @@ class SimWorld:
             name = self.link_names.get(link, str(link))
             if name in ignored_links:
                 continue
-            out.append((name, self.scene_labels[other], float(distance)))
+            label = self.scene_labels[other]
+            if other in self.voxel_bodies:  # the box holding the contact point
+                inside = np.asarray(pt[6]) - 0.25 * self.voxel * np.asarray(pt[7])
+                centre = (np.floor(inside / self.voxel) + 0.5) * self.voxel
+                label = f"voxel at {np.round(centre, 3).tolist()}"
+            out.append((name, label, float(distance)))
         return out
 
     def close(self) -> None:

@@ -2,10 +2,11 @@
 
 The defaults live in one place: the dataclasses. The sections that configure a library stage
 extend that stage's own settings (perception's :class:`~perception.cloud_cfg.CloudCfg`,
-timing's :class:`~execution.timing_cfg.TimingCfg`, simulation's
-:class:`~execution.sim_cfg.SimCfg`), so ``gaide run``, ``gaide perceive``, ``gaide time`` and
-``gaide simulate`` start from the same values. ``gaide/data/run.yaml`` documents every key
-with its default, and a test holds it equal to ``RunCfg()``.
+timing's :class:`~execution.timing_cfg.TimingCfg`, export's
+:class:`~execution.urscript.UrScriptCfg` and :class:`~execution.ros2_goal.Ros2GoalCfg`,
+simulation's :class:`~execution.sim_cfg.SimCfg`), so ``gaide run``, ``gaide perceive``,
+``gaide time`` and ``gaide simulate`` start from the same values. ``gaide/data/run.yaml``
+documents every key with its default, and a test holds it equal to ``RunCfg()``.
 :mod:`gaide.pipeline.config_io` merges defaults < a user's file < flags and builds a
 :class:`RunCfg`. Units: m, rad, s; poses in the robot's base frame.
 """
@@ -17,8 +18,10 @@ import enum
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+from execution.ros2_goal import Ros2GoalCfg
 from execution.sim_cfg import SimCfg
 from execution.timing_cfg import TimingCfg
+from execution.urscript import UrScriptCfg
 from gaide_core import settings as checks
 from gaide_core.errors import ConfigError, GaideError
 from perception.cloud_cfg import CloudCfg
@@ -32,6 +35,8 @@ EXPORT_NAMES = {  # format -> the run's output of it
     "json": "trajectory.json",
     "bag": "trajectory.bag",
     "ros2": "trajectory_ros2",  # a ROS2 bag is a folder
+    "urscript": "trajectory.script",  # a URScript program (a UR's six joints)
+    "ros2_goal": "trajectory_goal.yaml",  # a ros2_control FollowJointTrajectory goal
 }
 EXPORT_FORMATS = tuple(EXPORT_NAMES)
 
@@ -133,12 +138,24 @@ class PlanningCfg:
 
 
 @dataclass(frozen=True, kw_only=True)
-class ExportCfg:
-    SECTION: ClassVar[str] = "export"
+class _ExportOutputs:
+    """The first keys of the export section (a base class only to come first)."""
+
     formats: tuple[str, ...] = ("csv", "json", "bag")  # of EXPORT_FORMATS
     storage: str = "sqlite3"  # ROS2 bag storage
 
+
+@dataclass(frozen=True, kw_only=True)
+class ExportCfg(Ros2GoalCfg, UrScriptCfg, _ExportOutputs):
+    """The formats a run writes, then the settings of the URScript program
+    (:class:`~execution.urscript.UrScriptCfg`) and of the ros2_control goal
+    (:class:`~execution.ros2_goal.Ros2GoalCfg`)."""
+
+    SECTION: ClassVar[str] = "export"
+
     def __post_init__(self) -> None:
+        UrScriptCfg.__post_init__(self)
+        Ros2GoalCfg.__post_init__(self)
         k = self.SECTION
         if isinstance(self.formats, str):
             _set(self, "formats", tuple(f.strip() for f in self.formats.split(",") if f.strip()))
@@ -249,6 +266,8 @@ class RunCfg:
         def plain(v: Any) -> Any:
             if isinstance(v, enum.Enum):
                 return v.value
+            if dataclasses.is_dataclass(v) and not isinstance(v, type):  # simulate.servo
+                return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
             return list(v) if isinstance(v, tuple) else v
 
         out: dict[str, Any] = {"bag": self.bag, "out": self.out, "robot": self.robot}

@@ -36,10 +36,24 @@ def _fmt_stage(r: StageRecord) -> str | None:
             f"{f['limit_violations']} limit violations"
         )
     if r.name == "simulation":
-        return (
+        text = (
             f"tracking RMS {1e3 * f['tracking_rms_rad']:.3g} mrad, max "
-            f"{1e3 * f['tracking_max_rad']:.3g} mrad; {f['contacts']} contacts ({f['status']})"
+            f"{1e3 * f['tracking_max_rad']:.3g} mrad"
         )
+        if f.get("tracking_rms_after_delay_rad") is not None and f.get("delay_ms"):
+            text += (
+                f" ({f['delay_ms']:.3g} ms delay; after it RMS "
+                f"{1e3 * f['tracking_rms_after_delay_rad']:.3g} mrad)"
+            )
+        if f.get("executed_clearance_ok") is not None:
+            c = f.get("executed_min_clearance_m")
+            text += (
+                "; executed clearance "
+                + ("unbounded" if c is None else f"{1e3 * c:.3g} mm")
+                + (" >= " if f["executed_clearance_ok"] else " < ")
+                + (f"margin {1e3 * f['clearance_margin_m']:.3g} mm")
+            )
+        return f"{text}; {f['contacts']} contacts ({f['status']})"
     if r.name == "export":
         return ", ".join(f["formats"])
     return None

@@ -35,6 +35,17 @@ def test_a_planted_delay_is_found_within_one_sample(
     assert res.overlap_s > 0.9 * small_traj.duration
 
 
+@pytest.mark.parametrize("rate", [100.0, 500.0])
+def test_a_delay_between_two_samples_is_found_within_a_millisecond(
+    small_traj: TimedTrajectory, rate: float
+) -> None:
+    # 12.3 ms: between the 100 Hz plan's samples (the parabola through the correlation peak
+    # places it); a servo's few-cycle delay must be told apart from the next cycle's.
+    log = _log_of(small_traj, 0.0123, rate)
+    res = compare(small_traj, log, CompareCfg(expected_start_s=0.5))
+    assert res.delay_s == pytest.approx(0.0123, abs=1e-3)
+
+
 def test_tracking_error_is_measured_after_alignment(small_traj: TimedTrajectory) -> None:
     log = _log_of(small_traj, 0.05, 500.0, noise=0.0)
     off = log.q.copy()

@@ -7,9 +7,11 @@ from execution.sim_cfg import SimCfg
 from execution.simulate import SimStatus, simulate
 from execution.trajectory import TimedTrajectory
 from gaide_core.errors import ExecutionError
+from planning.checker import make_checker
 from planning.collision import CollisionChecker
 from planning.primitives import Box, PrimitiveWorld
 from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
 
 
 def test_the_simulation_tracks_a_trajectory_in_free_space(
@@ -17,14 +19,32 @@ def test_the_simulation_tracks_a_trajectory_in_free_space(
 ) -> None:
     res = simulate(small_traj, robot, cfg=SimCfg(settle_s=0.2))
     assert res.status is SimStatus.CLEAR and not res.contacts
-    assert res.rms_all_rad < 1e-3 and res.max_rad.max() < 5e-3
-    assert len(res.log.t) == len(small_traj.t) + 20  # 0.2 s of holding at 100 Hz
+    assert res.controller == "servo" and res.rate_hz == 500.0  # the servo model by default
+    # The servo's 6 ms delay is most of the error against the plan at the same time.
+    assert res.rms_all_rad < 0.01 and res.max_all_rad < 0.02
+    assert res.max_after_delay_rad is not None and res.max_after_delay_rad.max() < 1e-3
+    # Every 2 ms cycle of the 100 Hz plan, the 3-cycle delay, then 0.2 s of holding.
+    assert len(res.log.t) == round(small_traj.duration * 500) + 1 + 3 + 100
     np.testing.assert_allclose(res.log.q[-1], small_traj.q[-1], atol=1e-3)
     assert res.log.names == robot.joint_names
 
 
+def test_the_ideal_controller_stays_selectable(
+    small_traj: TimedTrajectory, robot: RobotModel
+) -> None:
+    res = simulate(small_traj, robot, cfg=SimCfg(settle_s=0.2, controller="ideal"))
+    assert res.status is SimStatus.CLEAR and res.controller == "ideal"
+    assert res.rms_all_rad < 1e-3 and res.max_rad.max() < 5e-3
+    assert res.delay_s == 0.0 and res.rate_hz == small_traj.rate_hz
+    assert len(res.log.t) == len(small_traj.t) + 20  # 0.2 s of holding at 100 Hz
+    np.testing.assert_allclose(res.log.q[-1], small_traj.q[-1], atol=1e-3)
+
+
 def test_a_planted_obstacle_is_reported_as_a_contact(
-    small_traj: TimedTrajectory, robot: RobotModel, free_checker: CollisionChecker
+    small_traj: TimedTrajectory,
+    robot: RobotModel,
+    spheres: SphereModel,
+    free_checker: CollisionChecker,
 ) -> None:
     # A box around where the hand is halfway through the trajectory.
     k = len(small_traj.t) // 2
@@ -32,14 +52,21 @@ def test_a_planted_obstacle_is_reported_as_a_contact(
     pose = np.eye(4)
     pose[:3, 3] = hand
     world = PrimitiveWorld([Box(np.array([0.15, 0.15, 0.15]), pose)])
-    res = simulate(small_traj, robot, primitives=world)
+    checker = make_checker(robot, spheres, world)
+    res = simulate(small_traj, robot, primitives=world, checker=checker)
     assert res.status is SimStatus.CONTACT
     first = res.contacts[0]
     assert first.obstacle == "box 0"
     assert first.link in {"wrist_2_link", "wrist_3_link", "ee_link", "wrist_1_link", "tool0"}
-    assert first.first_s <= small_traj.t[k] + 1e-9
+    assert first.first_s <= small_traj.t[k] + res.delay_s + 1e-9
     assert first.mesh_confirmed is True  # the URDF's meshes hit the box too
-    assert res.max_rad.max() > 1e-3  # the box pushes the arm off its plan
+    # The box pushes the arm off its plan, beyond the servo's delay.
+    assert res.max_after_delay_rad is not None and res.max_after_delay_rad.max() > 1e-3
+    # The executed motion loses the margin: the check of the achieved configurations says so.
+    assert res.executed_min_clearance_m is not None
+    assert res.executed_min_clearance_m < checker.margin and res.clearance_ok is False
+    assert res.executed_invalid is not None and res.executed_invalid > 0
+    assert res.summary()["executed_clearance_ok"] is False
 
 
 def test_a_cloud_scene_becomes_voxel_boxes(

@@ -7,8 +7,10 @@ import dataclasses
 
 import pytest
 
+from execution.ros2_goal import Ros2GoalCfg
 from execution.sim_cfg import SimCfg
 from execution.timing_cfg import TimingCfg
+from execution.urscript import UrScriptCfg
 from gaide.cli import build_parser
 from gaide.pipeline.config import PlanningCfg, RunCfg
 from gaide.pipeline.config_io import DEFAULTS, default_dict, load_cfg, read_yaml
@@ -37,6 +39,12 @@ def test_run_sections_extend_the_library_settings() -> None:
         if getattr(run.simulate, f.name) != getattr(SimCfg(), f.name)
     ]
     assert sorted(differ) == ["settle_s", "voxel_m"]
+    # the export section: the URScript program's and the ros2_control goal's settings as such
+    for lib in (UrScriptCfg, Ros2GoalCfg):
+        assert isinstance(run.export, lib)
+        for f in dataclasses.fields(lib):
+            assert getattr(run.export, f.name) == getattr(lib(), f.name), f.name
+    assert list(run.as_dict()["export"])[:2] == ["formats", "storage"]
 
 
 def _defaults(*command: str) -> dict[str, object]:
@@ -54,6 +62,11 @@ def test_command_flags_default_to_the_class_values() -> None:
     assert flags["velocity_scale"] == timing.velocity_scale
     assert flags["jerk_scale"] == timing.jerk_scale
     assert _defaults("simulate")["settle"] == sim.settle_s
+    urscript, goal = UrScriptCfg(), Ros2GoalCfg()
+    assert flags["urscript_mode"] == urscript.urscript_mode.value
+    assert flags["servoj_period"] == urscript.servoj_period_s
+    assert flags["ros2_controller"] == goal.ros2_controller
+    assert flags["goal_rate"] == goal.goal_rate_hz
     assert _defaults("perceive")["voxel"] == CloudCfg().voxel
     assert _defaults("plan")["budget"] == PlanningCfg().budget_s
 
@@ -67,6 +80,10 @@ def test_command_flags_default_to_the_class_values() -> None:
         ("perception.workspace_min", [2, 2, 2], r"perception\.workspace_min .* below"),
         ("simulate.velocity_gain", 2, r"simulate\.velocity_gain"),
         ("simulate.crop_m", -1, r"simulate\.crop_m"),
+        ("export.servoj_period_s", 0.003, r"export\.servoj_period_s must be a whole number"),
+        ("export.urscript_mode", "speedj", r"export\.urscript_mode must be one of"),
+        ("export.ros2_controller", "a b", r"export\.ros2_controller must be a ROS name"),
+        ("export.formats", ["csv", "txt"], r"export\.formats must be one of .*'urscript'"),
     ],
 )
 def test_a_library_setting_out_of_range_names_its_section(
