@@ -11,7 +11,9 @@ __all__ = [
     "motion",
     "report",
     "run",
+    "run_mcap",
     "runner",
+    "scene3d",
     "sense",
     "summary",
 ]

@@ -204,9 +204,11 @@ class ReportCfg:
     SECTION: ClassVar[str] = "report"
     enabled: bool = True
     poses: int = 6  # robot poses drawn along the path
+    mcap: bool = True  # run.mcap: the run as one MCAP file for Foxglove
 
     def __post_init__(self) -> None:
         checks.flag(self.enabled, "report.enabled")
+        checks.flag(self.mcap, "report.mcap")
         checks.integer(self.poses, "report.poses", lo=2, hi=20)
 
 

@@ -1,6 +1,7 @@
 """``report.html``: one self-contained page (inline CSS, pictures embedded as base64 data
-URIs) with the summary, every stage's picture and figures, and the settings of the run. It
-opens in any browser, from anywhere: nothing outside the file is needed.
+URIs, plotly.js inline) with the summary, the run in 3D (:mod:`gaide.pipeline.scene3d`),
+every stage's picture and figures, and the settings of the run. It opens in any browser,
+from anywhere: nothing outside the file is needed.
 """
 
 from __future__ import annotations
@@ -8,12 +9,19 @@ from __future__ import annotations
 import base64
 import html
 import json
+import logging
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from gaide.pipeline.runner import StageRunner, StageStatus
 from gaide.pipeline.summary import output_rows, summary_rows
+
+if TYPE_CHECKING:
+    from planning.collision import CollisionChecker
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -58,7 +66,16 @@ td, th { border-bottom: 1px solid #ddd; padding: 0.3em 0.8em; text-align: left;
 figure { margin: 1.5em 0; } figure img { max-width: 100%; border: 1px solid #ccc; }
 figcaption { color: #555; margin-top: 0.3em; } code, pre { background: #f5f5f5; }
 pre { padding: 0.8em; overflow-x: auto; }
+#view3d { border: 1px solid #ccc; }
 """
+
+VIEW_CAPTION = (
+    "The run in the robot's base frame: the scene cloud, the camera's viewing pyramid "
+    "(0.3 m deep), the robot's collision spheres (42-vertex icospheres, vertices on each "
+    "sphere) at the start (blue), the goal (red) and the closest approach to the scene "
+    "(purple, its clearance marked in red), and moving along the trajectory (play, or "
+    "drag the slider). Drag to turn, scroll to zoom; click a legend entry to hide it."
+)
 
 
 def _compact(text: str) -> str:
@@ -90,8 +107,40 @@ def _figure(out: Path, pic: Picture) -> str:
     )
 
 
-def report_html(runner: StageRunner, config_yaml: str, title: str) -> str:
-    """The report of the run so far (a failed run's report says where it stopped)."""
+def _view3d(runner: StageRunner, checker: CollisionChecker | None) -> str:
+    """The 3D section: the view, or one line saying why there is none (a failed view never
+    costs the rest of the report)."""
+    from gaide.pipeline.config import RunCfg
+    from gaide.pipeline.scene3d import run_scene, scene_html
+
+    head = "<h2>The run in 3D</h2>"
+    try:
+        cfg = RunCfg.from_dict(runner.header["config"])
+        fragment = scene_html(run_scene(runner.out, cfg, checker))
+    except FileNotFoundError as err:  # no cloud: the run stopped before perception ended
+        return f"{head}\n<p>No 3D view: {html.escape(str(err))}.</p>"
+    except Exception as err:  # the view is an extra: whatever breaks it, the page stands
+        log.warning("report.html without the 3D view: %s: %s", type(err).__name__, err)
+        return (
+            f'{head}\n<p class="bad">No 3D view: {html.escape(f"{type(err).__name__}: {err}")}</p>'
+        )
+    return (
+        f'{head}\n<figure id="view3d">{fragment}'
+        f"<figcaption>{html.escape(VIEW_CAPTION)}</figcaption></figure>"
+    )
+
+
+def report_html(
+    runner: StageRunner,
+    config_yaml: str,
+    title: str,
+    *,
+    checker: CollisionChecker | None = None,
+    view3d: bool = True,
+) -> str:
+    """The report of the run so far (a failed run's report says where it stopped).
+    ``checker``: the planning stage's, spares the 3D view building it again (seconds);
+    ``view3d`` False leaves the view out (an interrupted run's report, written at once)."""
     summary = runner.summary()
     failed = summary["failed_stage"]
     status = (
@@ -108,6 +157,7 @@ def report_html(runner: StageRunner, config_yaml: str, title: str) -> str:
         status,
         "<h2>Summary</h2>",
         _table(summary_rows(runner)),
+        _view3d(runner, checker) if view3d else "",
         "<h2>Stages</h2>",
     ]
     for pic in PICTURES:
@@ -141,12 +191,20 @@ def report_html(runner: StageRunner, config_yaml: str, title: str) -> str:
     return "\n".join(parts) + "\n"
 
 
-def report_stage(runner: StageRunner, config_yaml: str, title: str) -> None:
-    """Write ``report.html`` atomically, as the report stage's output."""
+def report_stage(
+    runner: StageRunner,
+    config_yaml: str,
+    title: str,
+    *,
+    checker: CollisionChecker | None = None,
+    view3d: bool = True,
+) -> None:
+    """Write ``report.html`` atomically, as the report stage's output (``checker``,
+    ``view3d``: as in :func:`report_html`)."""
     record = runner.records["report"]
     # The report lists itself among the files: record it before rendering.
     record.outputs.append(str(runner.path("report.html")))
-    page = report_html(runner, config_yaml, title).encode()
+    page = report_html(runner, config_yaml, title, checker=checker, view3d=view3d).encode()
     record.outputs.pop()
     runner.commit(record, {"report.html": page})
     record.figures["bytes"] = len(page)
