@@ -156,8 +156,7 @@ class SphereModel:
                     continue
                 origin = col.find("origin")
                 xyz = _floats(origin.attrib.get("xyz", "0 0 0") if origin is not None else "0 0 0")
-                fid = model.getFrameId(name)
-                frame = model.frames[fid]
+                frame = model.frames[model.getFrameId(name)]
                 joint_name = model.names[frame.parentJoint]
                 p_joint = frame.placement.act(np.asarray(xyz, float))
                 target = carrier.get(joint_name)
@@ -166,10 +165,19 @@ class SphereModel:
                         f"spherized URDF {source}: link '{name}' rides on joint '{joint_name}', "
                         f"which the robot does not have; robot joints: {list(robot.joint_names)}"
                     )
-                T_joint_link = robot.links[target].T_joint_link
-                p_link = np.linalg.inv(T_joint_link) @ np.append(p_joint, 1.0)
+                if model.existFrame(target) and (
+                    model.frames[model.getFrameId(target)].parentJoint == frame.parentJoint
+                ):
+                    # The carrier link is in the URDF too, on the same joint: place the
+                    # sphere in that link's own frame. This drops whatever fixed offset the
+                    # URDF puts between its root and the robot's base (a mount height).
+                    carrier_frame = model.frames[model.getFrameId(target)]
+                    p_link = np.asarray(carrier_frame.placement.actInv(p_joint), float)
+                else:
+                    T_joint_link = robot.links[target].T_joint_link
+                    p_link = (np.linalg.inv(T_joint_link) @ np.append(p_joint, 1.0))[:3]
                 links.append(target)
-                centers.append(p_link[:3])
+                centers.append(p_link)
                 radii.append(float(sphere.attrib["radius"]))
         if not links:
             raise RobotModelError(f"spherized URDF {source} has no <sphere> collision elements")

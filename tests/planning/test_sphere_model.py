@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -112,3 +113,45 @@ def test_third_party_spherized_urdf_imports(robot: RobotModel, rng: np.random.Ge
     gripper = [i for i, link in enumerate(model.links) if link in ("ee_link", "wrist_3_link")]
     ahead = (centers[gripper] - flange[:3, 3]) @ flange[:3, 2]
     assert ahead.max() > 0.1  # Robotiq fingers reach well past the flange
+
+
+def test_spherized_urdf_spheres_follow_its_own_kinematics(
+    robot: RobotModel, rng: np.random.Generator
+) -> None:
+    """Every imported sphere, carried by our FK, sits where the spherized URDF's own
+    kinematics puts it (in its base_link's frame: the URDF mounts the arm 0.9144 m up and
+    turned), base spheres included."""
+    import pinocchio as pin
+
+    from planning.collision import SphereCollisionChecker
+
+    urdf = shared_data("robots/vamp_ur5_spherized.urdf")
+    model = SphereModel.from_spherized_urdf(urdf, robot)
+    checker = SphereCollisionChecker(robot, model)
+    theirs = pin.buildModelFromUrdf(str(urdf))
+    data = theirs.createData()
+    root = ET.parse(urdf).getroot()
+    spheres = [
+        (
+            link.attrib["name"],
+            np.array([float(v) for v in col.find("origin").attrib["xyz"].split()]),
+        )
+        for link in root.iter("link")
+        for col in link.iter("collision")
+        if col.find("geometry/sphere") is not None
+    ]
+    assert len(spheres) == len(model)
+    base = theirs.getFrameId("base_link")
+    assert any(robot.links[link].joint_id == 0 for link in model.links)  # base spheres exist
+    for q in [*robot.sample_uniform(rng, 4), robot.named_configuration("home")]:
+        q_theirs = np.zeros(theirs.nq)
+        for name, value in zip(robot.joint_names, q, strict=True):
+            q_theirs[theirs.joints[theirs.getJointId(name)].idx_q] = value
+        pin.framesForwardKinematics(theirs, data, q_theirs)
+        expected = np.array(
+            [(data.oMf[base].inverse() * data.oMf[theirs.getFrameId(n)]).act(p) for n, p in spheres]
+        )
+        ours = checker.sphere_centers(q[None])[0]
+        T_base = robot.frame_pose(q, "base_link")
+        ours_in_base = (ours - T_base[:3, 3]) @ T_base[:3, :3]
+        assert np.abs(ours_in_base - expected).max() < 1e-6
