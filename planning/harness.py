@@ -112,7 +112,7 @@ def _init_worker(robot_config: str | None, weights: str | None = None) -> None:
 
     robot = load_robot(robot_config)
     assert robot.config.spheres is not None
-    _ROBOT = (robot, SphereModel.load(robot.config.spheres))
+    _ROBOT = (robot, SphereModel.load_for(robot.config.spheres, robot))
     try:
         from ompl import util as ou
 

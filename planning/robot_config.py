@@ -38,7 +38,7 @@ class RobotConfig:
     urdf: Path  # URDF file, resolved
     package_dirs: tuple[Path, ...] = ()  # roots for package:// mesh URIs
     srdf: Path | None = None  # disabled collision pairs (optional)
-    spheres: Path | None = None  # sphere model YAML (cuRobo layout); generated when absent
+    spheres: Path | None = None  # cuRobo sphere YAML or a spherized URDF; generated when absent
     end_effector: str = "tool0"  # frame name
     T_world_base: Array = field(default_factory=lambda: np.eye(4))  # base pose in world
     lower: Array | None = None  # joint position limits (rad), None: from URDF

@@ -12,7 +12,7 @@ def robot_and_spheres(config: str | None) -> tuple[RobotModel, SphereModel]:
     names no sphere file)."""
     robot = load_robot(config)
     if robot.config.spheres is not None:
-        spheres = SphereModel.load(robot.config.spheres)
+        spheres = SphereModel.load_for(robot.config.spheres, robot)
     else:
         spheres = generate_spheres(robot)
     spheres.check_against(robot)

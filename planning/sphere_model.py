@@ -125,6 +125,14 @@ class SphereModel:
                 radii.append(r)
         return SphereModel(tuple(links), np.asarray(centers, float), np.asarray(radii, float))
 
+    @staticmethod
+    def load_for(path: str | Path, robot: RobotModel) -> SphereModel:
+        """A robot config's ``spheres:`` file: a spherized URDF (``.urdf``, see
+        :meth:`from_spherized_urdf`) or cuRobo's YAML layout (:meth:`load`)."""
+        if Path(path).suffix.lower() == ".urdf":
+            return SphereModel.from_spherized_urdf(path, robot)
+        return SphereModel.load(path)
+
     # -- spherized URDFs -----------------------------------------------------------------
 
     @staticmethod

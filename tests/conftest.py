@@ -37,7 +37,7 @@ def robot() -> RobotModel:
 @pytest.fixture(scope="session")
 def spheres(robot: RobotModel) -> SphereModel:
     assert robot.config.spheres is not None
-    return SphereModel.load(robot.config.spheres)
+    return SphereModel.load_for(robot.config.spheres, robot)
 
 
 @pytest.fixture

@@ -25,7 +25,7 @@ def warm_up() -> float:
     t0 = time.perf_counter()
     robot = load_robot()
     assert robot.config.spheres is not None
-    spheres = SphereModel.load(robot.config.spheres)
+    spheres = SphereModel.load_for(robot.config.spheres, robot)
     prims = PrimitiveWorld(
         [Box(np.array([0.2, 0.2, 0.2])), Cylinder(0.05, 0.2), Sphere(0.05, np.array([0.5, 0, 0]))]
     )

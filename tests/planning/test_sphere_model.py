@@ -155,3 +155,13 @@ def test_spherized_urdf_spheres_follow_its_own_kinematics(
         T_base = robot.frame_pose(q, "base_link")
         ours_in_base = (ours - T_base[:3, 3]) @ T_base[:3, :3]
         assert np.abs(ours_in_base - expected).max() < 1e-6
+
+
+def test_a_config_takes_a_spherized_urdf_as_its_spheres(robot: RobotModel) -> None:
+    urdf = shared_data("robots/vamp_ur5_spherized.urdf")
+    from_urdf = SphereModel.load_for(urdf, robot)
+    direct = SphereModel.from_spherized_urdf(urdf, robot)
+    assert from_urdf.links == direct.links and np.array_equal(from_urdf.centers, direct.centers)
+    assert len(SphereModel.load_for(robot.config.spheres, robot)) == len(  # type: ignore[arg-type]
+        SphereModel.load(robot.config.spheres)  # type: ignore[arg-type]
+    )
