@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pinocchio as pin
 import torch
 from torch import nn
 
@@ -31,14 +33,55 @@ def shipped_checkpoint(kind: str) -> Path:
 
 
 def robot_signature(robot: RobotModel) -> dict[str, Any]:
-    """What a checkpoint must match: the joint names and limits of the robot."""
-    names = [str(n) for n in robot.model.names[1:]]
+    """What a checkpoint must match: the joint names and limits of the robot, and its
+    kinematics (``kinematics``: per joint, the placement in its parent joint's frame (xyz in
+    m, quaternion xyzw) and the motion it allows in its own frame (the Jacobian column:
+    linear, angular), so an arm with the same joint names but other link lengths or axes
+    (a UR10 for a UR5) does not pass)."""
+    model = robot.model
+    data = model.createData()
+    q0 = pin.neutral(model)
+    pin.computeJointJacobians(model, data, q0)
+    kinematics = []
+    for i in range(1, model.njoints):
+        placement = model.jointPlacements[i]
+        J = pin.getJointJacobian(model, data, i, pin.ReferenceFrame.LOCAL)
+        motion = J[:, model.joints[i].idx_v] if model.joints[i].nv == 1 else np.zeros(6)
+        quat = pin.Quaternion(placement.rotation).coeffs()
+        kinematics.append([round(float(v), 7) for v in (*placement.translation, *quat, *motion)])
     return {
-        "joints": names,
+        "joints": [str(n) for n in model.names[1:]],
         "dof": robot.dof,
         "lower": [round(float(x), 6) for x in robot.lower],
         "upper": [round(float(x), 6) for x in robot.upper],
+        "kinematics": kinematics,
     }
+
+
+#: Placements and axes closer than this (m, or unit-vector components) count as the same.
+KINEMATICS_TOL = 1e-5
+
+
+def signature_difference(theirs: dict[str, Any], ours: dict[str, Any]) -> str | None:
+    """What differs between a checkpoint's robot and this one, in words, or None."""
+    if theirs.get("joints") != ours["joints"] or theirs.get("dof") != ours["dof"]:
+        return f"joints {theirs.get('joints')} there, {ours['joints']} here"
+    kin = theirs.get("kinematics")
+    if kin is None:
+        return None  # a checkpoint from before signatures held the kinematics
+    for name, a, b in zip(ours["joints"], kin, ours["kinematics"], strict=True):
+        ta, tb = np.asarray(a[:3]), np.asarray(b[:3])
+        if np.abs(ta - tb).max() > KINEMATICS_TOL:
+            return (
+                f"joint {name} sits {np.linalg.norm(ta):.4f} m from its parent there, "
+                f"{np.linalg.norm(tb):.4f} m here (link lengths differ)"
+            )
+        qa, qb = np.asarray(a[3:7]), np.asarray(b[3:7])
+        if min(np.abs(qa - qb).max(), np.abs(qa + qb).max()) > KINEMATICS_TOL:
+            return f"joint {name} is mounted at another orientation there"
+        if np.abs(np.asarray(a[7:]) - np.asarray(b[7:])).max() > KINEMATICS_TOL:
+            return f"joint {name} moves about/along another axis there ({a[7:]} vs {b[7:]})"
+    return None
 
 
 @dataclass
@@ -138,11 +181,12 @@ def load_checkpoint(
     if kind is not None and ckpt.kind != kind:
         raise ModelError(f"checkpoint {p} holds a {ckpt.kind} model, not {kind}")
     if robot is not None:
-        want = robot_signature(robot)
-        if ckpt.robot.get("joints") != want["joints"] or ckpt.robot.get("dof") != want["dof"]:
+        differs = signature_difference(ckpt.robot, robot_signature(robot))
+        if differs is not None:
             raise ModelError(
-                f"checkpoint {p} was trained for another robot (joints {ckpt.robot.get('joints')}); "
-                f"this robot has {want['joints']}"
+                f"checkpoint {p} was trained for another robot: {differs}; the classical and "
+                "compiled planners (rrtc, gaide-hybrid's classical part, the OMPL baselines) "
+                "work for any robot, or train weights for this one with `gaide train --robot`"
             )
     return ckpt
 

@@ -213,3 +213,29 @@ def test_a_scene_cloud_outside_the_workspace_is_refused(
 def test_model_sizes_out_of_range_are_refused(sizes: dict[str, float]) -> None:
     with pytest.raises(ModelError, match=r"model sizes|dropouts"):
         ModelCfg(**sizes)  # type: ignore[arg-type]
+
+
+def test_the_shipped_weights_refuse_a_ur10_for_its_link_lengths(
+    robot: RobotModel, tmp_path: Path
+) -> None:
+    """Same joint names as the UR5, other link lengths: the weights say what differs."""
+    from planning.neural.checkpoint import shipped_checkpoint
+    from planning.robot_model import load_robot
+
+    ur5 = (Path(__file__).parents[2] / "planning" / "data" / "ur5.yaml").read_text()
+    config = tmp_path / "ur10.yaml"
+    config.write_text(
+        "\n".join(
+            line.replace("ur5_robot.urdf", "ur10_robot.urdf")
+            for line in ur5.splitlines()
+            if not line.startswith(("srdf:", "spheres:"))
+        )
+    )
+    ur10 = load_robot(config)
+    assert ur10.joint_names == robot.joint_names
+    load_checkpoint(shipped_checkpoint("gaide"), robot, "gaide")  # the UR5 passes
+    with pytest.raises(
+        ModelError,
+        match=r"joint shoulder_pan_joint sits 0.0892 m .* 0.1273 m here \(link lengths differ\)",
+    ):
+        load_checkpoint(shipped_checkpoint("gaide"), ur10, "gaide")
