@@ -69,8 +69,13 @@ def parse_yaml(text: str, where: str, error: type[GaideError]) -> Any:
         return yaml.load(text, Loader=_Loader)
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark or err.context_mark
-        at = "" if mark is None else f"line {mark.line + 1}, column {mark.column + 1}: "
+        at = "" if mark is None else f"line {mark.line + 1}, column {mark.column + 1}"
         what = " ".join(s for s in (err.context, err.problem) if s)
+        if "nesting depth" in what:
+            # libyaml's own limit (PyYAML 6.0.4's bundled libyaml) can fire before ours: its
+            # scanner reads ahead of the events check_yaml_structure counts.
+            raise error(f"{where} nests deeper than {MAX_YAML_DEPTH} levels ({at})") from err
+        at = f"{at}: " if at else ""
         raise error(f"{where} is not valid YAML: {at}{one_line(what)}") from err
     except (yaml.YAMLError, ValueError, OverflowError) as err:  # e.g. a date out of range
         raise error(f"{where} is not valid YAML: {one_line(err)}") from err
