@@ -51,10 +51,10 @@ from gaide_core.errors import ExecutionError
 from gaide_core.joints import JointStates
 from gaide_core.ros import BagMessage, Messages, joint_state_messages
 from gaide_core.types import Array, IntArray
+from perception.bag_builder import MessageBuilder
 
 if TYPE_CHECKING:
     from execution.trajectory import TimedTrajectory
-    from gaide_core.camera import Intrinsics
     from perception.frames import Frames
     from planning.robot_model import RobotModel
     from planning.sphere_model import SphereModel
@@ -130,7 +130,7 @@ class _Out:
     """The file's messages, serialized (CDR) as they are made: a message object may then be
     changed and added again (the sphere markers, sample after sample)."""
 
-    def __init__(self, m: Messages) -> None:
+    def __init__(self, m: MessageBuilder) -> None:
         self.m = m
         self.records: list[_Record] = []
 
@@ -177,7 +177,7 @@ def write_run_mcap(
     target = Path(path)
     if not max_rate_hz > 0:
         raise ExecutionError(f"{target}: max_rate_hz must be > 0, got {max_rate_hz}")
-    m = Messages(2)
+    m = MessageBuilder(2)  # ROS 2 messages, the camera's among them
     out = _Out(m)
     if (path_q is not None or trajectory is not None) and robot is None:
         raise ExecutionError(f"{target}: the path and the trajectory need the robot model")
@@ -322,7 +322,7 @@ def _point(m: Messages, p: Array) -> Any:
     return m.new("geometry_msgs/msg/Point", x=x, y=y, z=z)
 
 
-def _depth_in_color(m: Messages, stamp: int, frames: Frames) -> list[Any]:
+def _depth_in_color(m: MessageBuilder, stamp: int, frames: Frames) -> list[Any]:
     """The depth camera in the color camera, when both streams and their extrinsics are
     known (without them the depth images have no place in 3D)."""
     if frames.depth is None or frames.color is None or frames.T_color_depth is None:
@@ -348,14 +348,14 @@ def _images(out: _Out, frames: Frames) -> str:
                 data=_jpeg(np.asarray(image)),
             )
             out.add(COLOR_IMAGE, _COMPRESSED, stamp, msg)
-            info = _camera_info(m, stamp, COLOR_FRAME, s.intrinsics)
+            info = m.camera_info("", stamp, COLOR_FRAME, s.intrinsics)
             out.add(COLOR_INFO, _INFO, stamp, info)
     if frames.depth is not None:
         s = frames.depth
         for image, stamp in zip(s.images, s.stamps_ns.tolist(), strict=True):
             msg = _depth_image(m, stamp, DEPTH_FRAME, np.asarray(image), frames.depth_units)
             out.add(DEPTH_IMAGE, _IMAGE, stamp, msg)
-            info = _camera_info(m, stamp, DEPTH_FRAME, s.intrinsics)
+            info = m.camera_info("", stamp, DEPTH_FRAME, s.intrinsics)
             out.add(DEPTH_INFO, _INFO, stamp, info)
     return COLOR_FRAME if frames.color is not None or frames.depth is None else DEPTH_FRAME
 
@@ -371,51 +371,13 @@ def _jpeg(image: npt.NDArray[Any]) -> npt.NDArray[np.uint8]:
 
 
 def _depth_image(
-    m: Messages, stamp: int, frame: str, image: npt.NDArray[Any], units: float | None
+    m: MessageBuilder, stamp: int, frame: str, image: npt.NDArray[Any], units: float | None
 ) -> Any:
     """16UC1 (mm, as ROS drivers publish) when the unit is 1 mm or unknown, else 32FC1 (m)."""
-    h, w = image.shape[:2]
     if units is None or math.isclose(units, 1e-3, rel_tol=1e-6):
-        data, encoding = image.astype("<u2"), "16UC1"
-    else:
-        data, encoding = (image.astype(np.float64) * units).astype("<f4"), "32FC1"
-    return m.new(
-        _IMAGE,
-        header=m.header(DEPTH_IMAGE, stamp, frame),
-        height=h,
-        width=w,
-        encoding=encoding,
-        is_bigendian=0,
-        step=w * data.itemsize,
-        data=np.frombuffer(data.tobytes(), dtype=np.uint8),
-    )
-
-
-def _camera_info(m: Messages, stamp: int, frame: str, intr: Intrinsics) -> Any:
-    K = np.asarray(intr.K, dtype=np.float64)
-    P = np.zeros((3, 4))
-    P[:, :3] = K
-    return m.new(
-        _INFO,
-        header=m.header("", stamp, frame),
-        height=int(intr.height),
-        width=int(intr.width),
-        distortion_model=intr.distortion_model,
-        d=np.asarray(intr.D, dtype=np.float64).ravel(),
-        k=K.ravel(),
-        r=np.eye(3).ravel(),
-        p=P.ravel(),
-        binning_x=0,
-        binning_y=0,
-        roi=m.new(
-            "sensor_msgs/msg/RegionOfInterest",
-            x_offset=0,
-            y_offset=0,
-            height=0,
-            width=0,
-            do_rectify=False,
-        ),
-    )
+        return m.image(DEPTH_IMAGE, stamp, frame, image.astype(np.uint16), "16UC1")
+    metres = (image.astype(np.float64) * units).astype(np.float32)
+    return m.image(DEPTH_IMAGE, stamp, frame, metres, "32FC1")
 
 
 def _cloud(m: Messages, stamp: int, frame: str, points: Array, colors: Array | None) -> Any:
