@@ -19,6 +19,7 @@ randomness comes only from (family, seed), so any machine generates the same pro
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -33,14 +34,18 @@ from planning.checker import endpoint_checker, make_checker
 from planning.collision import CollisionChecker
 from planning.family_names import CATEGORIES, FAMILIES, split_seed
 from planning.ik import IKCfg, solve_ik
+from planning.kinematics import BatchKinematics
+from planning.planner import PlanStatus
 from planning.primitives import Box, Cylinder, Primitive, PrimitiveWorld
 from planning.problem import Problem, difficulty
 from planning.robot_model import RobotModel
+from planning.rrtc import CompiledRRTConnect, RRTCCfg
 from planning.sphere_model import SphereModel
 
 TABLE_TOP = -0.02  # m
 MIN_EE_DISTANCE = 0.05  # m
 TIGHT_BELOW = 0.04  # m: a hand nearer than this to an obstacle is in a tight spot
+ESCAPE_ITERATIONS = 20_000  # compiled RRT-Connect iterations an end may need to reach home
 
 
 # -- geometry helpers --------------------------------------------------------------------
@@ -58,8 +63,8 @@ def _local(origin: npt.ArrayLike, yaw: float, xyz: npt.ArrayLike) -> Array:
     return np.array([o[0] + c * x - s * y, o[1] + s * x + c * y, o[2] + z])
 
 
-def table() -> Box:
-    return _box([1.6, 1.6, 0.04], [0.3, 0.0, TABLE_TOP - 0.02])
+def table(scale: float = 1.0) -> Box:
+    return _box([1.6 * scale, 1.6 * scale, 0.04], [0.3 * scale, 0.0, TABLE_TOP - 0.02])
 
 
 def open_box(
@@ -169,6 +174,31 @@ def reach_pose(xyz: npt.ArrayLike, heading: float, tilt: float, roll: float) -> 
 
 # -- generators ------------------------------------------------------------------------
 
+#: The UR5's reach (m, tool0 from the first joint's origin; :func:`reach`): the families'
+#: distances are the paper's for this reach.
+UR5_REACH = 0.949
+
+
+def reach(robot: RobotModel, samples: int = 4000) -> float:
+    """How far the end effector gets from the first joint's origin (m): the largest distance
+    over ``samples`` seeded random configurations (the same number on every machine)."""
+    origin = robot.T_world_base[:3, :3] @ robot.model.jointPlacements[1].translation
+    origin = origin + robot.T_world_base[:3, 3]
+    ee = robot.model.frames[robot.ee_frame]
+    Q = robot.sample_uniform(np.random.default_rng(0), samples)
+    P = BatchKinematics(robot).points(
+        Q, np.array([ee.parentJoint], np.int64), np.asarray(ee.placement.translation)[None]
+    )[:, 0]
+    return float(np.max(np.linalg.norm(P - origin, axis=1)))
+
+
+@functools.lru_cache(maxsize=16)
+def workspace_scale(robot: RobotModel) -> float:
+    """The robot's :func:`reach` over the UR5's, to two decimals (1.0 for the UR5): the
+    factor on every family's distances from the base, so each family asks the same of any
+    arm."""
+    return round(reach(robot) / UR5_REACH, 2)
+
 
 @dataclass
 class _Ctx:
@@ -177,6 +207,10 @@ class _Ctx:
     rng: np.random.Generator
 
     prefer: Array | None = None  # pick the IK solution nearest this (None: a random one)
+    # Every end must reach this configuration (home, when valid in the scene) with the plain
+    # ``planning`` checker: see :meth:`escapes`.
+    anchor: Array | None = None
+    planning: CollisionChecker | None = None
 
     def ik(self, T: Array) -> Array | None:
         sols = solve_ik(
@@ -192,17 +226,31 @@ class _Ctx:
         # ends made 1% of the category problems unsolvable by any planner).
         return min(sols, key=lambda q: float(np.linalg.norm(q - prefer)))
 
+    def escapes(self, q: Array) -> bool:
+        """True if ``q`` reaches the anchor within ESCAPE_ITERATIONS of the compiled
+        RRT-Connect (seeded: the same answer on any machine). An IK branch folded against a
+        joint limit in a bin or under a shelf can sit in a pocket no motion leaves (measured:
+        9 of 30 UR10 category problems before this check)."""
+        if self.anchor is None or self.planning is None:
+            return True
+        planner = CompiledRRTConnect(RRTCCfg(max_iterations=ESCAPE_ITERATIONS, simplify=False))
+        found = planner.search(self.planning, q, self.anchor, np.random.default_rng(0))
+        return found.status is PlanStatus.SUCCESS
+
 
 # Draws a candidate end-effector pose with the generator it is given (the scene's, or a
 # pair's own when one scene serves several start/goal pairs).
 Target = Callable[[np.random.Generator], Array]
 
 
-def _clutter(rng: np.random.Generator, n: int, keep_clear: list[Array]) -> list[Primitive]:
-    """n boxes and cylinders on the table, 0.3-0.75 m from the base, away from given spots."""
+def _clutter(
+    rng: np.random.Generator, n: int, keep_clear: list[Array], scale: float
+) -> list[Primitive]:
+    """n boxes and cylinders on the table, 0.3-0.75 m from the base (times ``scale``), away
+    from given spots."""
     out: list[Primitive] = []
     while len(out) < n:
-        r, a = rng.uniform(0.3, 0.75), rng.uniform(-2.4, 2.4)
+        r, a = scale * rng.uniform(0.3, 0.75), rng.uniform(-2.4, 2.4)
         xy = np.array([r * np.cos(a), r * np.sin(a)])
         if any(np.linalg.norm(xy - k[:2]) < 0.12 for k in keep_clear):
             continue
@@ -226,9 +274,9 @@ def _clutter(rng: np.random.Generator, n: int, keep_clear: list[Array]) -> list[
     return out
 
 
-def _table_target() -> Target:
+def _table_target(scale: float) -> Target:
     def draw(rng: np.random.Generator) -> Array:
-        r, a = rng.uniform(0.35, 0.7), rng.uniform(-2.2, 2.2)
+        r, a = scale * rng.uniform(0.35, 0.7), rng.uniform(-2.2, 2.2)
         return down_pose(
             [r * np.cos(a), r * np.sin(a), TABLE_TOP + rng.uniform(0.06, 0.22)],
             rng.uniform(-np.pi, np.pi),
@@ -287,10 +335,11 @@ def _shelf(
     width: tuple[float, float],
     depth: float,
     dist: tuple[float, float],
+    scale: float,
     slots: bool = False,
 ) -> Shelf:
     heading = rng.uniform(-0.6, 0.6)
-    d = rng.uniform(*dist)
+    d = scale * rng.uniform(*dist)
     front = np.array([d * np.cos(heading), d * np.sin(heading), 0.0])
     s = rng.uniform(*spacing)
     first = rng.uniform(0.0, 0.12)
@@ -303,28 +352,33 @@ def _shelf(
     return Shelf(front, heading, w, depth, boards, dividers)
 
 
-def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Target, Target]:
-    """Obstacles (table first) and two target samplers (start, goal) for one family."""
-    prims: list[Primitive] = [table()]
+def _scene(
+    family: str, rng: np.random.Generator, scale: float = 1.0
+) -> tuple[list[Primitive], Target, Target]:
+    """Obstacles (table first) and two target samplers (start, goal) for one family.
+    Distances from the base are multiplied by ``scale`` (:func:`workspace_scale`); the
+    objects keep their sizes (a gripper is as big on any arm)."""
+    s = scale
+    prims: list[Primitive] = [table(s)]
     if family == "tabletop":
-        prims += _clutter(rng, int(rng.integers(4, 9)), [])
-        return prims, _table_target(), _table_target()
+        prims += _clutter(rng, int(rng.integers(4, 9)), [], s)
+        return prims, _table_target(s), _table_target(s)
     if family == "box":
-        r, a = rng.uniform(0.45, 0.6), rng.uniform(-1.2, 1.2)
+        r, a = s * rng.uniform(0.45, 0.6), rng.uniform(-1.2, 1.2)
         centre = np.array([r * np.cos(a), r * np.sin(a), 0.0])
         inner = (float(rng.uniform(0.28, 0.4)), float(rng.uniform(0.28, 0.4)))
         height, yaw = float(rng.uniform(0.12, 0.22)), float(a + rng.uniform(-0.3, 0.3))
         prims += open_box(centre, yaw, inner, height, 0.015)
-        prims += _clutter(rng, int(rng.integers(1, 4)), [centre])
+        prims += _clutter(rng, int(rng.integers(1, 4)), [centre], s)
         inside = _in_container(centre, yaw, inner, 0.015, height)
-        outside = _table_target()
+        outside = _table_target(s)
         return (prims, inside, outside) if rng.random() < 0.5 else (prims, outside, inside)
     if family == "bins":
         n = int(rng.integers(2, 4))
         angles = np.sort(rng.choice(np.linspace(-1.6, 1.6, 7), n, replace=False))
         bins = []
         for a in angles:
-            r = rng.uniform(0.45, 0.6)
+            r = s * rng.uniform(0.45, 0.6)
             centre = np.array([r * np.cos(a), r * np.sin(a), 0.0])
             inner = (float(rng.uniform(0.22, 0.3)), float(rng.uniform(0.22, 0.3)))
             height = float(rng.uniform(0.08, 0.15))
@@ -334,16 +388,22 @@ def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Targ
         return prims, bins[i], bins[j]
     if family in ("shelf_i", "shelf_ii"):
         shelf = _shelf(
-            rng, spacing=(0.28, 0.34), levels=2, width=(0.6, 0.8), depth=0.32, dist=(0.45, 0.55)
+            rng,
+            spacing=(0.28, 0.34),
+            levels=2,
+            width=(0.6, 0.8),
+            depth=0.32,
+            dist=(0.45, 0.55),
+            scale=s,
         )
         prims += shelf.parts()
         if family == "shelf_i":
-            prims += _clutter(rng, int(rng.integers(0, 3)), [shelf.front])
+            prims += _clutter(rng, int(rng.integers(0, 3)), [shelf.front], s)
             level = _in_shelf(shelf, int(rng.integers(0, 2)), (0.15, 0.45))
             return (
-                (prims, _table_target(), level)
+                (prims, _table_target(s), level)
                 if rng.random() < 0.5
-                else (prims, level, _table_target())
+                else (prims, level, _table_target(s))
             )
         low, high = _in_shelf(shelf, 0, (0.15, 0.45)), _in_shelf(shelf, 1, (0.15, 0.45))
         return (prims, low, high) if rng.random() < 0.5 else (prims, high, low)
@@ -355,12 +415,13 @@ def _scene(family: str, rng: np.random.Generator) -> tuple[list[Primitive], Targ
             width=(0.6, 0.8),
             depth=0.32,
             dist=(0.45, 0.55),
+            scale=s,
             slots=True,
         )
         prims += shelf.parts()
         slot_half = shelf.slots[1] - 0.1
         deep = _in_shelf(shelf, 1, (0.3, 0.45), (-slot_half, slot_half))
-        other = _in_shelf(shelf, 0, (0.15, 0.4)) if rng.random() < 0.6 else _table_target()
+        other = _in_shelf(shelf, 0, (0.15, 0.4)) if rng.random() < 0.6 else _table_target(s)
         return (prims, other, deep) if rng.random() < 0.5 else (prims, deep, other)
     raise PlanningError(f"unknown family '{family}'; valid: {list(FAMILIES)}")
 
@@ -389,7 +450,7 @@ def generate_problem(
         return _in_category(family, seed, robot, spheres, category, scene_attempts)
     rng = np.random.default_rng([FAMILIES.index(family), seed])
     for _ in range(scene_attempts):
-        prims, start_target, goal_target = _scene(family, rng)
+        prims, start_target, goal_target = _scene(family, rng, workspace_scale(robot))
         world = PrimitiveWorld(prims)
         # Endpoints keep ENDPOINT_SLACK beyond the margin: certified motions can reach them.
         ctx = _Ctx(robot, endpoint_checker(make_checker(robot, spheres, world)), rng)
@@ -417,12 +478,13 @@ def generate_problem(
     raise PlanningError(f"{family} seed {seed}: no valid start and goal in {scene_attempts} scenes")
 
 
-def _free_target() -> Target:
-    """Open space: a top-down pose 25-60 cm above the table, 30-65 cm from the base."""
+def _free_target(scale: float) -> Target:
+    """Open space: a top-down pose 25-60 cm above the table, 30-65 cm from the base (both
+    times ``scale``)."""
 
     def draw(rng: np.random.Generator) -> Array:
-        r, a = rng.uniform(0.3, 0.65), rng.uniform(-np.pi, np.pi)
-        z = TABLE_TOP + rng.uniform(0.25, 0.6)
+        r, a = scale * rng.uniform(0.3, 0.65), rng.uniform(-np.pi, np.pi)
+        z = TABLE_TOP + scale * rng.uniform(0.25, 0.6)
         return down_pose([r * np.cos(a), r * np.sin(a), z], rng.uniform(-np.pi, np.pi))
 
     return draw
@@ -443,13 +505,16 @@ def _in_category(
     hand = _hand_links(robot)
     scene_rng = np.random.default_rng([FAMILIES.index(family), seed])
     for attempt in range(scene_attempts):
-        prims, target_a, target_b = _scene(family, scene_rng)
+        prims, target_a, target_b = _scene(family, scene_rng, workspace_scale(robot))
         world = PrimitiveWorld(prims)
         rng = np.random.default_rng(
             [FAMILIES.index(family), seed, attempt, 1 + CATEGORIES.index(category)]
         )
-        ctx = _Ctx(robot, endpoint_checker(make_checker(robot, spheres, world)), rng, _home(robot))
-        targets = {"tight": (target_a, target_b), "free": (_free_target(),)}
+        plain = make_checker(robot, spheres, world)
+        home = _home(robot)
+        anchor = home if plain.config_valid_one(home) else None
+        ctx = _Ctx(robot, endpoint_checker(plain), rng, home, anchor, plain)
+        targets = {"tight": (target_a, target_b), "free": (_free_target(workspace_scale(robot)),)}
         start = _end_of_kind(ctx, targets[want[0]], want[0] == "tight", hand, attempts)
         if start is None:
             continue
@@ -480,8 +545,8 @@ def _end_of_kind(
     far_from: Array | None = None,
 ) -> Array | None:
     """A collision-free IK solution for one of ``targets`` whose hand clearance is under
-    TIGHT_BELOW (``tight``) or not, and whose end effector is MIN_EE_DISTANCE from
-    ``far_from``; None after ``attempts`` targets."""
+    TIGHT_BELOW (``tight``) or not, that leaves for home (:meth:`_Ctx.escapes`), and whose
+    end effector is MIN_EE_DISTANCE from ``far_from``; None after ``attempts`` targets."""
     for _ in range(attempts):
         T = targets[int(ctx.rng.integers(len(targets)))](ctx.rng)
         if far_from is not None and np.linalg.norm(T[:3, 3] - far_from) < MIN_EE_DISTANCE:
@@ -490,7 +555,7 @@ def _end_of_kind(
         if q is None:
             continue
         clear = float(ctx.checker.world_clearance(q[None], links=hand)[0])
-        if (clear < TIGHT_BELOW) == tight:
+        if (clear < TIGHT_BELOW) == tight and ctx.escapes(q):
             return q
     return None
 

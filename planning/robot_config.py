@@ -51,6 +51,9 @@ class RobotConfig:
     ignored_link_pairs: tuple[tuple[str, str], ...] = ()
     world_ignored_links: tuple[str, ...] = ()  # links bolted to the mount: self-checks only
     named_configurations: dict[str, Array] = field(default_factory=dict)
+    # Joints held at a value and left out of planning (grippers, fingers, a mobile base):
+    # the planning model is Pinocchio's reduced model with these joints fixed.
+    locked_joints: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.collision_margin < 0:
@@ -104,6 +107,7 @@ def load_robot_config(path: str | Path | None = None) -> RobotConfig:
         "urdf", "package_dirs", "srdf", "spheres", "end_effector", "base_pose", "joint_limits",
         "velocity_limits", "acceleration_limits", "jerk_limits", "collision_margin",
         "edge_resolution", "ignored_link_pairs", "world_ignored_links", "named_configurations",
+        "locked_joints",
     }  # fmt: skip
     unknown = sorted(set(raw) - known)
     if unknown:
@@ -130,6 +134,17 @@ def load_robot_config(path: str | Path | None = None) -> RobotConfig:
         if vec is None:
             raise ConfigError(f"{source}: named_configurations.{key} has no joint values")
         named[str(key)] = vec
+    locked_raw = raw.get("locked_joints") or {}
+    if not isinstance(locked_raw, dict):
+        raise ConfigError(f"{source}: locked_joints must map joint names to values (rad or m)")
+    locked = {}
+    for key, value in locked_raw.items():
+        try:
+            locked[str(key)] = float(value)
+        except (TypeError, ValueError) as err:
+            raise ConfigError(
+                f"{source}: locked_joints.{key} must be a number (rad or m), got {value!r}"
+            ) from err
     return RobotConfig(
         urdf=resolve_uri(str(raw["urdf"]), base_dir, package_dirs),
         package_dirs=package_dirs,
@@ -147,4 +162,5 @@ def load_robot_config(path: str | Path | None = None) -> RobotConfig:
         ignored_link_pairs=tuple((str(a), str(b)) for a, b in pairs),
         world_ignored_links=tuple(str(v) for v in raw.get("world_ignored_links") or []),
         named_configurations=named,
+        locked_joints=locked,
     )

@@ -66,9 +66,10 @@ class RobotModel:
         if not urdf.is_file():
             raise RobotModelError(f"URDF {urdf} does not exist")
         try:
-            self.model = pin.buildModelFromUrdf(str(urdf))
+            full = pin.buildModelFromUrdf(str(urdf))
         except (RuntimeError, ValueError) as err:
             raise RobotModelError(f"URDF {urdf} does not parse: {err}") from err
+        self.model = _reduced(full, config.locked_joints, urdf)
         for j in range(1, self.model.njoints):
             kind = _JOINT_KINDS.get(self.model.joints[j].shortname()[len("JointModel") :])
             if kind is not None:
@@ -366,6 +367,38 @@ def _geometry_to_mesh(obj: pin.GeometryObject, urdf: Path) -> trimesh.Trimesh:
     if kind == "Capsule":
         return trimesh.creation.capsule(height=2.0 * float(g.halfLength), radius=float(g.radius))
     raise RobotModelError(f"URDF {urdf}: collision geometry type {kind} is not supported")
+
+
+def _reduced(full: pin.Model, locked: dict[str, float], urdf: Path) -> pin.Model:
+    """``full`` with the ``locked`` joints fixed at their values (Pinocchio's reduced model:
+    their links stay, carried by the joint above them)."""
+    if not locked:
+        return full
+    q_ref = pin.neutral(full)
+    ids = []
+    for name, value in locked.items():
+        if not full.existJointName(name):
+            raise RobotModelError(
+                f"locked_joints: URDF {urdf} has no joint '{name}'; its joints: "
+                f"{list(full.names[1:])}"
+            )
+        jid = int(full.getJointId(name))
+        joint = full.joints[jid]
+        if joint.nq != 1:
+            raise RobotModelError(
+                f"locked_joints: joint '{name}' has {joint.nq} coordinates; only revolute and "
+                "prismatic joints can be locked"
+            )
+        lo, hi = full.lowerPositionLimit[joint.idx_q], full.upperPositionLimit[joint.idx_q]
+        if not lo <= value <= hi:
+            raise RobotModelError(
+                f"locked_joints: {name} = {value} is outside its limits [{lo:.4f}, {hi:.4f}]"
+            )
+        q_ref[joint.idx_q] = value
+        ids.append(jid)
+    if len(ids) == full.njoints - 1:
+        raise RobotModelError(f"locked_joints locks every joint of {urdf}; nothing is left to plan")
+    return pin.buildReducedModel(full, ids, q_ref)
 
 
 def _srdf_disabled_pairs(srdf: Path) -> set[frozenset[str]]:

@@ -17,7 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+import open3d as o3d
 import trimesh
+from numba import njit
 from scipy.cluster.vq import kmeans2
 
 from gaide_core.errors import RobotModelError
@@ -68,7 +70,18 @@ class _LinkCoverer:
             for a, b in zip(lo, hi, strict=True)
         ]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-        inside = mesh.contains(grid) if mesh.is_watertight else np.zeros(len(grid), bool)
+        self.scene = o3d.t.geometry.RaycastingScene()
+        self.scene.add_triangles(
+            o3d.core.Tensor.from_numpy(np.ascontiguousarray(mesh.vertices, np.float32)),
+            o3d.core.Tensor.from_numpy(np.ascontiguousarray(mesh.faces, np.uint32)),
+        )
+        if mesh.is_watertight:
+            occupied = self.scene.compute_occupancy(
+                o3d.core.Tensor.from_numpy(grid.astype(np.float32))
+            )
+            inside = occupied.numpy().astype(bool)
+        else:
+            inside = np.zeros(len(grid), bool)
         self.interior = grid[inside]
         self.mesh = mesh
         self.cfg = cfg
@@ -141,9 +154,11 @@ class _LinkCoverer:
         boundary = pts[np.all(d2 > (R**2)[None, :], axis=1)]
         if len(boundary) == 0:
             return 0.0
-        # trimesh's signed distance is positive inside the mesh.
-        outside = np.maximum(-trimesh.proximity.signed_distance(self.mesh, boundary), 0.0)
-        return float(np.mean(outside))
+        # Open3D's signed distance is negative inside the mesh.
+        sd = self.scene.compute_signed_distance(
+            o3d.core.Tensor.from_numpy(boundary.astype(np.float32))
+        )
+        return float(np.mean(np.maximum(sd.numpy().astype(float), 0.0)))
 
 
 def _nearest(points: Array, seeds: Array) -> npt.NDArray[np.int64]:
@@ -167,13 +182,26 @@ def _sqdist(a: Array, b: Array) -> Array:
     return np.sum((a[:, None, :] - b[None, :, :]) ** 2, axis=-1)
 
 
+@njit(cache=True)
 def _enclosing_center(points: Array, iters: int = 200) -> Array:
     """Approximate centre of the minimum enclosing ball (Badoiu-Clarkson iteration); the
-    radius is then measured exactly, so coverage never depends on this being optimal."""
-    c = points.mean(axis=0)
+    radius is then measured exactly, so coverage never depends on this being optimal.
+    Compiled: the fit calls it thousands of times on thousands of points."""
+    n = points.shape[0]
+    c = np.zeros(3)
+    for k in range(n):
+        for a in range(3):
+            c[a] += points[k, a] / n
     for i in range(1, iters + 1):
-        far = points[np.argmax(np.sum((points - c) ** 2, axis=1))]
-        c = c + (far - c) / (i + 1)
+        best, far = -1.0, 0
+        for k in range(n):
+            d = 0.0
+            for a in range(3):
+                d += (points[k, a] - c[a]) ** 2
+            if d > best:
+                best, far = d, k
+        for a in range(3):
+            c[a] += (points[far, a] - c[a]) / (i + 1)
     return c
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +23,41 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     sph.add_argument("--max-spheres", type=int, default=60)
     sph.add_argument("-o", "--output", required=True, help="sphere YAML (cuRobo layout)")
     sph.set_defaults(func=cmd_spherize)
+    setup = rsub.add_parser(
+        "setup",
+        help="a complete robot config from a URDF: chain, limits, spheres, self-collision matrix",
+    )
+    setup.add_argument("urdf", help="the robot's URDF")
+    setup.add_argument("--srdf", help="SRDF: its disabled pairs and named states are used too")
+    setup.add_argument("--base-link", help="first link of the planning chain (default: the root)")
+    setup.add_argument(
+        "--tip-link", help="last link of the planning chain (default: where the arm ends or splits)"
+    )
+    setup.add_argument(
+        "--lock",
+        action="append",
+        default=[],
+        metavar="JOINT=VALUE",
+        help="hold a joint at a value (rad or m); joints off the chain are held at 0 (clamped)",
+    )
+    setup.add_argument(
+        "--named",
+        action="append",
+        default=[],
+        metavar="NAME=Q1,Q2,...",
+        help="a named configuration (rad or m); --named home=... sets the posture IK prefers",
+    )
+    setup.add_argument(
+        "--package-dir",
+        action="append",
+        default=[],
+        help="a folder holding the packages the URDF's package:// URIs name",
+    )
+    setup.add_argument(
+        "--samples", type=int, default=10_000, help="random configurations for the matrix"
+    )
+    setup.add_argument("-o", "--output", required=True, help="robot config YAML to write")
+    setup.set_defaults(func=cmd_setup)
     show = rsub.add_parser("show", help="draw the robot's spheres at a configuration")
     show.add_argument("--robot", help="robot config YAML (default: UR5)")
     show.add_argument("--q", help="joint values (rad), comma separated, or a named configuration")
@@ -56,6 +92,62 @@ def cmd_spherize(args: argparse.Namespace) -> int:
     spheres = generate_spheres(robot, SpherizeCfg(max_spheres=args.max_spheres))
     spheres.save(args.output)
     print(f"{len(spheres)} spheres over {len(spheres.link_names)} links -> {args.output}")
+    return 0
+
+
+def cmd_setup(args: argparse.Namespace) -> int:
+    from planning.setup_assistant import SetupCfg, setup_robot
+
+    locks = {}
+    for item in args.lock:
+        joint, sep, value = item.partition("=")
+        try:
+            locks[joint.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep or not joint.strip():
+            raise ConfigError(f"--lock {item!r}: give JOINT=VALUE (rad or m)")
+    named = {}
+    for item in args.named:
+        key, sep, values = item.partition("=")
+        try:
+            named[key.strip()] = tuple(float(v) for v in values.split(","))
+        except ValueError:
+            sep = ""
+        if not sep or not key.strip():
+            raise ConfigError(f"--named {item!r}: give NAME=Q1,Q2,... (rad or m)")
+    if args.samples < 100:
+        raise ConfigError(f"--samples must be >= 100, got {args.samples}")
+    result = setup_robot(
+        Path(args.urdf),
+        Path(args.output),
+        SetupCfg(
+            srdf=Path(args.srdf) if args.srdf else None,
+            base_link=args.base_link,
+            tip_link=args.tip_link,
+            locks=locks,
+            named=named,
+            package_dirs=tuple(Path(p) for p in args.package_dir),
+            samples=args.samples,
+        ),
+    )
+    robot = result.robot
+    reasons = Counter(result.disabled.values())
+    rows = [
+        ("planning joints", f"{robot.dof}: {', '.join(robot.joint_names)}"),
+        ("locked", ", ".join(f"{k}={v:g}" for k, v in result.locked.items()) or "(none)"),
+        ("end effector", robot.config.end_effector),
+        ("spheres", f"{len(result.spheres)} over {len(result.spheres.link_names)} links"),
+        (
+            "pairs not checked",
+            ", ".join(f"{n} {why}" for why, n in sorted(reasons.items())) or "(none)",
+        ),
+        ("named", ", ".join(robot.config.named_configurations)),
+        ("config", str(result.config_path)),
+        ("sphere file", str(result.spheres_path)),
+        *(("note", n) for n in result.notes),
+    ]
+    print_table(rows, "robot setup")
     return 0
 
 
