@@ -29,7 +29,8 @@ log = logging.getLogger(__name__)
 
 
 def _bare_urdf(robot: RobotModel, folder: Path) -> Path:
-    """A copy of the robot's URDF with absolute mesh paths and no visual or Gazebo tags."""
+    """A copy of the robot's URDF with absolute mesh paths, no visual, Gazebo or joint
+    dynamics tags, and a token inertia for links that have none."""
     cfg = robot.config
     try:
         root = ET.parse(cfg.urdf).getroot()
@@ -38,15 +39,34 @@ def _bare_urdf(robot: RobotModel, folder: Path) -> Path:
     for link in root.iter("link"):
         for visual in link.findall("visual"):
             link.remove(visual)
+        if link.find("inertial") is None and _moved_by_a_joint(root, link.get("name", "")):
+            # PyBullet gives a link without <inertial> 1 kg and 1 kg m^2 (a tool frame at
+            # the flange then needs more torque than the arm has): give it next to nothing.
+            inertial = ET.SubElement(link, "inertial")
+            ET.SubElement(inertial, "mass", value="0.001")
+            ET.SubElement(
+                inertial, "inertia", ixx="1e-7", iyy="1e-7", izz="1e-7", ixy="0", ixz="0", iyz="0"
+            )
     for tag in ("gazebo", "transmission"):
         for el in root.findall(tag):
             root.remove(el)
+    # Joint damping and friction are not modelled (execution.servo): PyBullet applies a
+    # URDF's damping explicitly, which light wrist links cannot take at 500 Hz (an xArm7's
+    # joint 7: damping 2 N m s, inertia 2e-4 kg m^2; the arm shook apart holding still).
+    for joint in root.iter("joint"):
+        for dynamics in joint.findall("dynamics"):
+            joint.remove(dynamics)
     for mesh in root.iter("mesh"):
         uri = mesh.get("filename", "")
         mesh.set("filename", str(resolve_uri(uri, cfg.urdf.parent, cfg.package_dirs)))
     out = folder / cfg.urdf.name
     ET.ElementTree(root).write(out)
     return out
+
+
+def _moved_by_a_joint(root: ET.Element, link: str) -> bool:
+    """True unless ``link`` is the URDF's root (PyBullet's fixed base keeps it massless)."""
+    return any(el.get("link") == link for el in root.iterfind("joint/child"))
 
 
 class SimWorld:
@@ -119,6 +139,14 @@ class SimWorld:
             self.body, self.joints, pb.VELOCITY_CONTROL, forces=[0.0] * len(self.joints),
             physicsClientId=c,
         )  # fmt: skip
+        # Locked joints (a gripper's fingers) stand at their values and are held there.
+        for name, value in robot.config.locked_joints.items():
+            if name in by_name:
+                pb.resetJointState(self.body, by_name[name], value, physicsClientId=c)
+                pb.setJointMotorControl2(
+                    self.body, by_name[name], pb.POSITION_CONTROL, targetPosition=value,
+                    physicsClientId=c,
+                )  # fmt: skip
 
     def _add_body(self, shape: int, position: Array, orientation: Array, label: str) -> None:
         body = pb.createMultiBody(

@@ -4,7 +4,9 @@ Calibrates the camera to the robot base from the ChArUco board in the bag, build
 cloud in the base frame without the robot's own points, plans with GAIDE (hybrid) from the
 recorded joint state to a goal behind the board, times the path with Ruckig, exports it,
 simulates it in PyBullet and writes ``report.html`` (settings: ``gaide/data/demo.yaml`` on
-top of ``gaide/data/run.yaml``; every ``gaide run`` flag works here too).
+top of ``gaide/data/run.yaml``; every ``gaide run`` flag works here too). With ``--robot``
+another arm takes the recorded UR5's place: the UR5's points are removed with its recorded
+joints (``perception.bag_robot``) and the arm starts at its ``home``.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 from gaide.commands.run import add_setting_flags, cfg_from_args, run_with_bars
 from gaide.pipeline.config_io import DATA
+from planning.robot_config import DEFAULT_CONFIG
 
 BAGS = Path(__file__).resolve().parents[1] / "bags"
 SAMPLE_BAG = BAGS / "sample_workcell.bag"
@@ -44,5 +47,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     args.bag = args.bag or str(SAMPLE_BAG)
     if args.target_pose is None and args.calib is None and args.T_base_cam is None:
         args.target_pose = str(SAMPLE_TARGET)
+    if args.robot is not None and Path(args.robot).resolve() != DEFAULT_CONFIG.resolve():
+        # The bag records a UR5: another arm stands in its place, the UR5's points are
+        # removed with its recorded joints, and the new arm starts at its home.
+        args.set = [f"perception.bag_robot={DEFAULT_CONFIG}", *args.set]
+        args.start = args.start or "home"
     cfg = cfg_from_args(args, [str(DEMO_CONFIG)])
     return run_with_bars(cfg, "gaide demo", args.progress)

@@ -31,6 +31,36 @@ BILLION_LAUGHS = "\n".join(
 )
 
 
+
+
+def _arm_urdf(joint_b: str = "revolute", extra: str = "", mesh: str = "") -> str:
+    """A two-link arm; ``joint_b`` the second joint's type, ``extra`` more elements."""
+    geometry = f'<mesh filename="{mesh}"/>' if mesh else '<box size="0.1 0.1 0.3"/>'
+    link = (
+        '<link name="{0}"><collision><geometry>' + geometry + "</geometry></collision>"
+        '<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" '
+        'ixz="0" iyz="0"/></inertial></link>'
+    )
+    limit = '<limit lower="-3" upper="3" velocity="2" effort="50"/>'
+    return (
+        '<robot name="arm">'
+        + "".join(link.format(n) for n in ("base", "a", "b"))
+        + '<joint name="ja" type="revolute"><parent link="base"/><child link="a"/>'
+        + f'<axis xyz="0 0 1"/>{limit}</joint>'
+        + f'<joint name="jb" type="{joint_b}"><parent link="a"/><child link="b"/>'
+        + f'<origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>{limit}</joint>'
+        + extra
+        + "</robot>"
+    )
+
+
+def _setup(tmp: Path, urdf: str, *flags: str) -> list[str]:
+    return ["robot", "setup", str(_write(tmp, "arm.urdf", urdf)), *flags, "-o", str(tmp / "r.yaml")]
+
+
+SETUP_OUTPUTS = ("r.yaml", "r_spheres.yaml")
+
+
 @dataclass(frozen=True)
 class Case:
     argv: Callable[[Path, dict[str, Path]], list[str]]  # (tmp_path, made inputs) -> argv
@@ -46,6 +76,33 @@ def _write(tmp: Path, name: str, content: str | bytes) -> Path:
 
 
 CASES: dict[str, Case] = {
+    "setup-floating-base": Case(
+        lambda t, _: _setup(t, _arm_urdf(joint_b="floating")), 6, "floating base", SETUP_OUTPUTS
+    ),
+    "setup-closed-chain": Case(
+        lambda t, _: _setup(
+            t,
+            _arm_urdf(
+                extra='<joint name="jc" type="fixed"><parent link="base"/><child link="b"/>'
+                "</joint>"
+            ),
+        ),
+        6,
+        "closed chain: link 'b' is the child of joints 'jb' and 'jc'",
+        SETUP_OUTPUTS,
+    ),
+    "setup-missing-mesh": Case(
+        lambda t, _: _setup(t, _arm_urdf(mesh="meshes/gone.stl")),
+        6,
+        "collision mesh meshes/gone.stl is missing",
+        SETUP_OUTPUTS,
+    ),
+    "setup-lock-unknown-joint": Case(
+        lambda t, _: _setup(t, _arm_urdf(), "--lock", "gripper=0.02"),
+        6,
+        "has no joint 'gripper'; its joints: ['ja', 'jb']",
+        SETUP_OUTPUTS,
+    ),
     "plan-seed-negative": Case(
         lambda t, _: ["plan", "--family", "box", "--seed=-1", "-o", str(t / "p.json")],
         2,

@@ -80,6 +80,9 @@ class PerceptionCfg(CloudCfg):
     SECTION: ClassVar[str] = "perception"
     self_filter: bool = True  # remove the robot's own points (needs joint states)
     joints: tuple[float, ...] | None = None  # rad, for the self-filter when the bag has none
+    # Robot config of the arm recorded in the bag (its joint states, the self-filter's spheres)
+    # when it is not the run's robot; None: the run's robot.
+    bag_robot: str | None = None
     default_extrinsics: bool = False  # no depth-to-color extrinsics in the bag: assume identity
 
     def __post_init__(self) -> None:
@@ -88,6 +91,7 @@ class PerceptionCfg(CloudCfg):
         checks.flag(self.self_filter, f"{k}.self_filter")
         checks.flag(self.default_extrinsics, f"{k}.default_extrinsics")
         _set(self, "joints", checks.vector(self.joints, f"{k}.joints", unit="rad"))
+        _set(self, "bag_robot", checks.text(self.bag_robot, f"{k}.bag_robot"))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -27,6 +27,7 @@ PATH_KEYS = (
     "robot",
     "calibration.calib",
     "calibration.target_pose",
+    "perception.bag_robot",
     "planning.checkpoint",
 )
 

@@ -20,7 +20,7 @@ from calibration.result import CalibrationResult, load_calibration
 from calibration.targets import parse_target
 from gaide.pipeline import figures
 from gaide.pipeline.config import RunCfg
-from gaide.pipeline.endpoints import Endpoint, parse_endpoint
+from gaide.pipeline.endpoints import FORMS, Endpoint, EndpointKind, parse_endpoint
 from gaide.pipeline.runner import StageRecord, StageRunner
 from gaide_core.errors import CalibrationError, ConfigError, ModelError
 from gaide_core.transforms import from_xyz_quat, to_xyz_quat
@@ -63,6 +63,12 @@ def setup_stage(cfg: RunCfg, record: StageRecord) -> Setup:
     robot, spheres = robot_and_spheres(cfg.robot)
     start = parse_endpoint(cfg.planning.start, robot, "start")
     goal = parse_endpoint(cfg.planning.goal, robot, "goal")
+    for ep in (start, goal):
+        if ep.kind is EndpointKind.RECORDED and cfg.perception.bag_robot is not None:
+            raise ConfigError(
+                f"{ep.what} 'recorded': the bag records another robot "
+                f"(perception.bag_robot={cfg.perception.bag_robot}); give --{ep.what} as {FORMS}"
+            )
     planner = _resolve_planner(cfg, robot)
     _check_weights(cfg, planner)
     record.figures.update(
@@ -208,11 +214,16 @@ def perception_stage(
     assert cfg.bag is not None  # checked by run.check_inputs
     joints = None if p.joints is None else np.asarray(p.joints)
     calibration = camera.result if camera.result is not None else camera.T_base_cam
+    # The arm in the bag: the run's robot, or another one (bag_robot) that the run's robot
+    # replaces; then its joint states are not the run's robot's.
+    bag_robot, bag_spheres = (
+        (setup.robot, setup.spheres) if p.bag_robot is None else robot_and_spheres(p.bag_robot)
+    )
     cloud, _, q = perceive_bag(
         cfg.bag,
         calibration,
-        setup.robot,
-        setup.spheres,
+        bag_robot,
+        bag_spheres,
         p,
         joints=joints,
         self_filter=p.self_filter,
@@ -235,5 +246,5 @@ def perception_stage(
         recorded_joints=None if q is None else np.round(q, 6).tolist(),
         self_filter=bool(p.self_filter and q is not None),
     )
-    recorded = q if joints is None else None
+    recorded = q if joints is None and p.bag_robot is None else None
     return Sensed(cloud, recorded)

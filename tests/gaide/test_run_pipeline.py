@@ -22,6 +22,7 @@ from gaide.pipeline.config_io import effective_dict, load_cfg
 from gaide.pipeline.endpoints import EndpointKind, parse_endpoint
 from gaide.pipeline.run import STAGES
 from gaide_core.errors import ConfigError
+from planning.robot_config import example_robot_data_share
 from planning.robot_model import RobotModel
 from tests.conftest import ROOT, run_cli, shared_data
 from tests.gaide.conftest import GOAL, RUN_FLAGS
@@ -358,3 +359,24 @@ def test_the_summary_says_running_until_the_run_ends(
     run_pipeline(cfg, hooks=Watch())
     assert seen == ["running"]
     assert json.loads((out / "summary.json").read_text())["status"] == "success"
+
+
+@pytest.mark.slow
+def test_a_robot_set_up_from_its_urdf_runs_the_demo(tmp_path: Path) -> None:
+    """An xArm7 from its URDF alone (7 joints): setup, then the demo end to end with the
+    xArm standing where the bag's UR5 stood (the UR5's points removed with its joints)."""
+    share = example_robot_data_share()
+    assert share is not None
+    urdf = share / "example-robot-data" / "robots" / "xarm_description" / "urdf" / "xarm7.urdf"
+    config = tmp_path / "xarm7.yaml"
+    setup = ["robot", "setup", str(urdf), "--samples", "1000", "-o", str(config)]
+    assert main(setup) == 0
+    assert main(["demo", "--robot", str(config), "--quick", "-o", str(tmp_path / "d")]) == 0
+    summary = json.loads((tmp_path / "d" / "summary.json").read_text())
+    assert summary["status"] == "success"
+    st = summary["stages"]
+    assert st["setup"]["figures"]["dof"] == 7
+    assert st["planning"]["figures"]["planner"] == "rrtc"
+    assert st["perception"]["figures"]["self_filter"] is True
+    assert st["simulation"]["figures"]["status"] == "clear"
+    assert (tmp_path / "d" / "report.html").is_file()
