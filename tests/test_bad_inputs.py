@@ -31,8 +31,6 @@ BILLION_LAUGHS = "\n".join(
 )
 
 
-
-
 def _arm_urdf(joint_b: str = "revolute", extra: str = "", mesh: str = "") -> str:
     """A two-link arm; ``joint_b`` the second joint's type, ``extra`` more elements."""
     geometry = f'<mesh filename="{mesh}"/>' if mesh else '<box size="0.1 0.1 0.3"/>'
@@ -83,8 +81,7 @@ CASES: dict[str, Case] = {
         lambda t, _: _setup(
             t,
             _arm_urdf(
-                extra='<joint name="jc" type="fixed"><parent link="base"/><child link="b"/>'
-                "</joint>"
+                extra='<joint name="jc" type="fixed"><parent link="base"/><child link="b"/></joint>'
             ),
         ),
         6,
