@@ -207,8 +207,8 @@ class _Ctx:
     rng: np.random.Generator
 
     prefer: Array | None = None  # pick the IK solution nearest this (None: a random one)
-    # Every end must reach this configuration (home, when valid in the scene) with the plain
-    # ``planning`` checker: see :meth:`escapes`.
+    # Every end must reach this configuration (:func:`_anchor`) with the plain ``planning``
+    # checker: see :meth:`escapes`.
     anchor: Array | None = None
     planning: CollisionChecker | None = None
 
@@ -453,7 +453,8 @@ def generate_problem(
         prims, start_target, goal_target = _scene(family, rng, workspace_scale(robot))
         world = PrimitiveWorld(prims)
         # Endpoints keep ENDPOINT_SLACK beyond the margin: certified motions can reach them.
-        ctx = _Ctx(robot, endpoint_checker(make_checker(robot, spheres, world)), rng)
+        plain = make_checker(robot, spheres, world)
+        ctx = _Ctx(robot, endpoint_checker(plain), rng, None, _anchor(robot, plain), plain)
         start = _solve(ctx, start_target, target_attempts)
         if start is None:
             continue
@@ -463,7 +464,7 @@ def generate_problem(
             if np.linalg.norm(T_goal[:3, 3] - p_start) < MIN_EE_DISTANCE:
                 continue
             goal = ctx.ik(T_goal)
-            if goal is None:
+            if goal is None or not ctx.escapes(goal):
                 continue
             clear = ctx.checker.world_clearance(np.stack([start, goal]), links=_hand_links(robot))
             return Problem(
@@ -511,9 +512,7 @@ def _in_category(
             [FAMILIES.index(family), seed, attempt, 1 + CATEGORIES.index(category)]
         )
         plain = make_checker(robot, spheres, world)
-        home = _home(robot)
-        anchor = home if plain.config_valid_one(home) else None
-        ctx = _Ctx(robot, endpoint_checker(plain), rng, home, anchor, plain)
+        ctx = _Ctx(robot, endpoint_checker(plain), rng, _home(robot), _anchor(robot, plain), plain)
         targets = {"tight": (target_a, target_b), "free": (_free_target(workspace_scale(robot)),)}
         start = _end_of_kind(ctx, targets[want[0]], want[0] == "tight", hand, attempts)
         if start is None:
@@ -566,6 +565,15 @@ def _home(robot: RobotModel) -> Array:
     return named["home"].copy() if "home" in named else (robot.lower + robot.upper) / 2
 
 
+def _anchor(robot: RobotModel, checker: CollisionChecker) -> Array | None:
+    """What every end must reach (:meth:`_Ctx.escapes`): ``home``, or the first other named
+    configuration valid in this scene (a shelf can stand where home's forearm is); None
+    when none is."""
+    named = robot.config.named_configurations
+    candidates = [_home(robot), *(q for name, q in named.items() if name != "home")]
+    return next((q for q in candidates if checker.config_valid_one(q)), None)
+
+
 def _hand_links(robot: RobotModel) -> tuple[str, ...]:
     """The links of the last three joints (the wrist and what it carries): tightness is about
     the hand's surroundings, not the shoulder that always sits near the table."""
@@ -578,7 +586,7 @@ def _hand_links(robot: RobotModel) -> tuple[str, ...]:
 def _solve(ctx: _Ctx, target: Target, attempts: int) -> Array | None:
     for _ in range(attempts):
         q = ctx.ik(target(ctx.rng))
-        if q is not None:
+        if q is not None and ctx.escapes(q):
             return q
     return None
 
