@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,9 @@ from gaide_core.errors import ModelError
 from planning.neural.embodiment import Embodiment
 from planning.neural.models import MODEL_KINDS, ModelCfg, build_model
 from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
+
+log = logging.getLogger(__name__)
 
 FORMAT = "gaide-checkpoint/1"
 WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "data" / "weights"
@@ -55,7 +59,18 @@ def robot_signature(robot: RobotModel) -> dict[str, Any]:
         "lower": [round(float(x), 6) for x in robot.lower],
         "upper": [round(float(x), 6) for x in robot.upper],
         "kinematics": kinematics,
+        "spheres": sphere_model_hash(robot),
     }
+
+
+def sphere_model_hash(robot: RobotModel) -> str | None:
+    """sha256 of the robot config's sphere model as written in cuRobo's layout (the same
+    spheres give the same hash whatever file they came from); None when the config names
+    no sphere file."""
+    if robot.config.spheres is None:
+        return None
+    spheres = SphereModel.load_for(robot.config.spheres, robot)
+    return hashlib.sha256(spheres.to_yaml().encode()).hexdigest()
 
 
 #: Placements and axes closer than this (m, or unit-vector components) count as the same.
@@ -187,6 +202,15 @@ def load_checkpoint(
                 f"checkpoint {p} was trained for another robot: {differs}; the classical and "
                 "compiled planners (rrtc, gaide-hybrid's classical part, the OMPL baselines) "
                 "work for any robot, or train weights for this one with `gaide train --robot`"
+            )
+        theirs = ckpt.robot.get("spheres")
+        if theirs is not None and theirs != robot_signature(robot)["spheres"]:
+            # The same arm with another collision model: its labels were collision-free for
+            # other spheres. Usable, but the user should know.
+            log.warning(
+                "checkpoint %s was trained with another sphere model of this robot (its "
+                "proposals may sit nearer obstacles than these spheres allow)",
+                p,
             )
     return ckpt
 

@@ -15,6 +15,7 @@ from planning.neural.embodiment import Embodiment, RobotCloud, build_embodiment
 from planning.neural.models import MODEL_KINDS, Gaide, ModelCfg, build_model, graph_mask
 from planning.neural.sampler import NeuralSampler
 from planning.robot_model import RobotModel
+from planning.sphere_model import SphereModel
 
 TINY = ModelCfg(
     hidden=32, heads=2, ff=64, enc_layers=2, dec_layers=1, scene_points=256, scene_tokens=8
@@ -239,3 +240,22 @@ def test_the_shipped_weights_refuse_a_ur10_for_its_link_lengths(
         match=r"joint shoulder_pan_joint sits 0.0892 m .* 0.1273 m here \(link lengths differ\)",
     ):
         load_checkpoint(shipped_checkpoint("gaide"), ur10, "gaide")
+
+
+def test_weights_for_other_spheres_of_the_same_robot_load_with_a_warning(
+    robot: RobotModel,
+    embodiment: Embodiment,
+    tmp_path: Path,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    path = _checkpoint("gaide", robot, embodiment, tmp_path)
+    assert robot_signature(robot)["spheres"] is not None
+    load_checkpoint(path, robot, "gaide")
+    assert "sphere model" not in caplog.text
+    assert robot.config.spheres is not None
+    spheres = SphereModel.load_for(robot.config.spheres, robot)
+    grown = SphereModel(spheres.links, spheres.centers, spheres.radii + 0.01)
+    grown.save(tmp_path / "grown.yaml")
+    other = RobotModel(robot.config.replace(spheres=tmp_path / "grown.yaml"))
+    load_checkpoint(path, other, "gaide")
+    assert "trained with another sphere model of this robot" in caplog.text
