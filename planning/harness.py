@@ -89,9 +89,11 @@ class RunRecord:
     budget_s: float
     detail: str = ""
     overhead_s: float = 0.0  # problem generation + path check (harness time, not planner time)
-    # neural planners: proposal steps, and those where no proposal was valid
+    # neural planners: proposal steps, those where no dropout rollout was valid, and those
+    # where no proposal was valid, the widened second draw included
     proposal_steps: int = 0
     no_valid_proposals: int = 0
+    no_valid_rollouts: int = 0
 
 
 # -- worker side -------------------------------------------------------------------------
@@ -178,6 +180,7 @@ def _run(
         overhead_s=gen_s + time.perf_counter() - t1,
         proposal_steps=int(result.stats.get("proposal_steps", 0)),
         no_valid_proposals=int(result.stats.get("no_valid_proposals", 0)),
+        no_valid_rollouts=int(result.stats.get("no_valid_rollouts", 0)),
     )
 
 
@@ -286,6 +289,11 @@ class HarnessResult:
                     "success_by_category": _success_by_category(counted),
                     "no_valid_proposal_share": _share(
                         sum(r.no_valid_proposals for r in counted),
+                        sum(r.proposal_steps for r in counted),
+                    ),
+                    # The same share before the widened draw: dropout rollouts alone.
+                    "no_valid_rollout_share": _share(
+                        sum(r.no_valid_rollouts for r in counted),
                         sum(r.proposal_steps for r in counted),
                     ),
                 }

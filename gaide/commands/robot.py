@@ -77,6 +77,13 @@ def cmd_info(args: argparse.Namespace) -> int:
                 f"j {robot.jerk_limits[i]:.0f}",
             )
         )
+    if robot.config.locked_joints:
+        rows.append(
+            (
+                "locked",
+                ", ".join(f"{k} = {v:g}" for k, v in robot.config.locked_joints.items()),
+            )
+        )
     counts = Counter(spheres.links)
     rows.append(("spheres", f"{len(spheres)}: " + ", ".join(f"{k} {v}" for k, v in counts.items())))
     rows.append(("margin", f"{robot.config.collision_margin} m"))
