@@ -36,6 +36,7 @@ __all__ = [
     "robot_setup",
     "rrtc",
     "scene_views",
+    "setup_assistant",
     "sphere_model",
     "spherize",
     "world",
