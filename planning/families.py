@@ -352,6 +352,21 @@ def _shelf(
     return Shelf(front, heading, w, depth, boards, dividers)
 
 
+def _two_level_shelf(rng: np.random.Generator, scale: float, slots: bool = False) -> Shelf:
+    """The shelves' shelf: two levels 28-34 cm apart, 60-80 cm wide, 32 cm deep, its front
+    45-55 cm from the base (times ``scale``)."""
+    return _shelf(
+        rng,
+        spacing=(0.28, 0.34),
+        levels=2,
+        width=(0.6, 0.8),
+        depth=0.32,
+        dist=(0.45, 0.55),
+        scale=scale,
+        slots=slots,
+    )
+
+
 def _scene(
     family: str, rng: np.random.Generator, scale: float = 1.0
 ) -> tuple[list[Primitive], Target, Target]:
@@ -387,15 +402,7 @@ def _scene(
         i, j = rng.choice(n, 2, replace=False)
         return prims, bins[i], bins[j]
     if family in ("shelf_i", "shelf_ii"):
-        shelf = _shelf(
-            rng,
-            spacing=(0.28, 0.34),
-            levels=2,
-            width=(0.6, 0.8),
-            depth=0.32,
-            dist=(0.45, 0.55),
-            scale=s,
-        )
+        shelf = _two_level_shelf(rng, s)
         prims += shelf.parts()
         if family == "shelf_i":
             prims += _clutter(rng, int(rng.integers(0, 3)), [shelf.front], s)
@@ -408,16 +415,7 @@ def _scene(
         low, high = _in_shelf(shelf, 0, (0.15, 0.45)), _in_shelf(shelf, 1, (0.15, 0.45))
         return (prims, low, high) if rng.random() < 0.5 else (prims, high, low)
     if family == "shelf_iii":
-        shelf = _shelf(
-            rng,
-            spacing=(0.28, 0.34),
-            levels=2,
-            width=(0.6, 0.8),
-            depth=0.32,
-            dist=(0.45, 0.55),
-            scale=s,
-            slots=True,
-        )
+        shelf = _two_level_shelf(rng, s, slots=True)
         prims += shelf.parts()
         slot_half = shelf.slots[1] - 0.1
         deep = _in_shelf(shelf, 1, (0.3, 0.45), (-slot_half, slot_half))

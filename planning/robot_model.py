@@ -401,13 +401,19 @@ def _reduced(full: pin.Model, locked: dict[str, float], urdf: Path) -> pin.Model
     return pin.buildReducedModel(full, ids, q_ref)
 
 
-def _srdf_disabled_pairs(srdf: Path) -> set[frozenset[str]]:
-    if not srdf.is_file():
-        raise RobotModelError(f"SRDF {srdf} does not exist")
+def read_xml(path: Path, what: str) -> ET.Element:
+    """The root element of an XML file (a URDF, an SRDF); RobotModelError naming ``what``
+    and the file when it is missing or does not parse."""
+    if not path.is_file():
+        raise RobotModelError(f"{what} {path} does not exist")
     try:
-        root = ET.parse(srdf).getroot()
+        return ET.parse(path).getroot()
     except ET.ParseError as err:
-        raise RobotModelError(f"SRDF {srdf} does not parse: {err}") from err
+        raise RobotModelError(f"{what} {path} does not parse: {err}") from err
+
+
+def _srdf_disabled_pairs(srdf: Path) -> set[frozenset[str]]:
+    root = read_xml(srdf, "SRDF")
     return {
         frozenset((el.attrib["link1"], el.attrib["link2"]))
         for el in root.iter("disable_collisions")

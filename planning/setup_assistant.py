@@ -33,7 +33,7 @@ from gaide_core.errors import ConfigError, RobotModelError
 from gaide_core.types import Array, IntArray
 from planning.collision import SphereCollisionChecker
 from planning.robot_config import RobotConfig, example_robot_data_share, resolve_uri
-from planning.robot_model import RobotModel
+from planning.robot_model import RobotModel, read_xml
 from planning.sphere_model import SphereModel
 from planning.spherize import SpherizeCfg, generate_spheres
 
@@ -72,6 +72,7 @@ class UrdfTree:
     links: tuple[str, ...]
     joints: tuple[UrdfJoint, ...]
     root: str
+    collision_meshes: tuple[tuple[str, str], ...]  # (link, mesh filename as written)
 
     def children(self, link: str) -> list[UrdfJoint]:
         return [j for j in self.joints if j.parent == link]
@@ -128,12 +129,7 @@ class UrdfTree:
 def read_urdf_tree(urdf: Path) -> UrdfTree:
     """The URDF's kinematic tree; RobotModelError for what a planning chain cannot be: a
     floating or planar joint, a closed chain (a link with two parents), several roots."""
-    if not urdf.is_file():
-        raise RobotModelError(f"URDF {urdf} does not exist")
-    try:
-        root_el = ET.parse(urdf).getroot()
-    except ET.ParseError as err:
-        raise RobotModelError(f"URDF {urdf} does not parse: {err}") from err
+    root_el = read_xml(urdf, "URDF")
     if root_el.tag != "robot":
         raise RobotModelError(f"{urdf} is not a URDF: its root element is <{root_el.tag}>")
     links = tuple(el.attrib.get("name", "") for el in root_el.findall("link"))
@@ -174,28 +170,29 @@ def read_urdf_tree(urdf: Path) -> UrdfTree:
             f"URDF {urdf} has {len(roots)} root links {roots}; a robot has exactly one "
             "(a closed chain has none)"
         )
-    return UrdfTree(urdf, links, tuple(joints), roots[0])
+    meshes = tuple(
+        (link.attrib.get("name", ""), mesh.attrib.get("filename", ""))
+        for link in root_el.findall("link")
+        for mesh in link.findall("collision/geometry/mesh")
+    )
+    return UrdfTree(urdf, links, tuple(joints), roots[0], meshes)
 
 
-def check_collision_meshes(urdf: Path, package_dirs: tuple[Path, ...]) -> None:
+def check_collision_meshes(tree: UrdfTree, package_dirs: tuple[Path, ...]) -> None:
     """RobotModelError naming the first collision mesh that cannot be found."""
-    root_el = ET.parse(urdf).getroot()
-    for link in root_el.findall("link"):
-        for mesh in link.findall("collision/geometry/mesh"):
-            uri = mesh.attrib.get("filename", "")
-            uri = uri[len("file://") :] if uri.startswith("file://") else uri
-            try:
-                path = resolve_uri(uri, urdf.parent, package_dirs)
-            except ConfigError as err:
-                raise RobotModelError(
-                    f"URDF {urdf}: link '{link.attrib.get('name')}' collision mesh {uri}: "
-                    f"{err}; add the package's parent folder with --package-dir"
-                ) from err
-            if not path.is_file():
-                raise RobotModelError(
-                    f"URDF {urdf}: link '{link.attrib.get('name')}' collision mesh {uri} is "
-                    f"missing ({path})"
-                )
+    for link, uri in tree.collision_meshes:
+        uri = uri.removeprefix("file://")
+        try:
+            path = resolve_uri(uri, tree.path.parent, package_dirs)
+        except ConfigError as err:
+            raise RobotModelError(
+                f"URDF {tree.path}: link '{link}' collision mesh {uri}: {err}; add the "
+                "package's parent folder with --package-dir"
+            ) from err
+        if not path.is_file():
+            raise RobotModelError(
+                f"URDF {tree.path}: link '{link}' collision mesh {uri} is missing ({path})"
+            )
 
 
 def default_tip(tree: UrdfTree, base: str) -> str:
@@ -251,7 +248,8 @@ def setup_robot(urdf: Path, output: Path, cfg: SetupCfg | None = None) -> SetupR
     tree = read_urdf_tree(urdf)
     share = example_robot_data_share()
     package_dirs = tuple(p.resolve() for p in cfg.package_dirs) + ((share,) if share else ())
-    check_collision_meshes(urdf, package_dirs)
+    check_collision_meshes(tree, package_dirs)
+    srdf = read_xml(cfg.srdf.resolve(), "SRDF") if cfg.srdf else None
     base = tree.check_link(cfg.base_link, "--base-link") if cfg.base_link else tree.root
     tip = tree.check_link(cfg.tip_link, "--tip-link") if cfg.tip_link else default_tip(tree, base)
     chain = {j.name for j in tree.chain(base, tip) if j.kind in MOVABLE}
@@ -268,8 +266,6 @@ def setup_robot(urdf: Path, output: Path, cfg: SetupCfg | None = None) -> SetupR
         srdf=cfg.srdf.resolve() if cfg.srdf else None,
         end_effector=tool_frame(tree, tip),
         locked_joints=locked,
-        lower=None,
-        upper=None,
     )
     probe = RobotModel(base_config)
     velocity = np.asarray(probe.model.velocityLimit, float)
@@ -291,7 +287,7 @@ def setup_robot(urdf: Path, output: Path, cfg: SetupCfg | None = None) -> SetupR
     robot = RobotModel(config)
     spheres = generate_spheres(robot, SpherizeCfg(max_spheres=cfg.max_spheres, seed=cfg.seed))
     given = {k: robot.check_configuration(v, f"--named {k}") for k, v in cfg.named.items()}
-    named, home_from = _named_configurations(robot, cfg.srdf, given)
+    named, home_from = _named_configurations(robot, srdf, given)
     if home_from == "limits":
         notes.append(
             "home is the middle of the joint limits: give --named home=... (your robot's home "
@@ -331,15 +327,14 @@ def _locked_joints(tree: UrdfTree, chain: set[str], locks: dict[str, float]) -> 
 
 
 def _named_configurations(
-    robot: RobotModel, srdf: Path | None, given: dict[str, Array]
+    robot: RobotModel, srdf: ET.Element | None, given: dict[str, Array]
 ) -> tuple[dict[str, Array], str]:
     """The SRDF's group states that set every planning joint, then ``given`` (--named), and
     ``home``: given, else the SRDF's home, ready or default state, else the middle of the
     limits (0 where the range holds it near the middle). Also says where home came from."""
     named: dict[str, Array] = {}
     if srdf is not None:
-        root_el = ET.parse(srdf).getroot()
-        for state in root_el.iter("group_state"):
+        for state in srdf.iter("group_state"):
             values = {
                 el.attrib.get("name", ""): float(el.attrib.get("value", "nan"))
                 for el in state.findall("joint")

@@ -94,6 +94,12 @@ CASES: dict[str, Case] = {
         "collision mesh meshes/gone.stl is missing",
         SETUP_OUTPUTS,
     ),
+    "setup-srdf-missing": Case(
+        lambda t, _: _setup(t, _arm_urdf(), "--srdf", str(t / "arm.srdf")),
+        6,
+        "arm.srdf does not exist",
+        SETUP_OUTPUTS,
+    ),
     "setup-lock-unknown-joint": Case(
         lambda t, _: _setup(t, _arm_urdf(), "--lock", "gripper=0.02"),
         6,

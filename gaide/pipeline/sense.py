@@ -40,6 +40,10 @@ class Setup:
     start: Endpoint
     goal: Endpoint
     planner: str  # the planner the run uses ("auto" resolved)
+    # The arm recorded in the bag: the run's robot, or perception.bag_robot's, which the
+    # run's robot replaces (its joint states are then not the run's robot's).
+    bag_robot: RobotModel
+    bag_spheres: SphereModel
 
 
 @dataclass(frozen=True)
@@ -81,7 +85,12 @@ def setup_stage(cfg: RunCfg, record: StageRecord) -> Setup:
         record.figures["planner_auto"] = (
             "GAIDE's weights fit this robot" if planner == AUTO_NEURAL else _NO_WEIGHTS
         )
-    return Setup(robot, spheres, start, goal, planner)
+    bag_robot, bag_spheres = (
+        (robot, spheres)
+        if cfg.perception.bag_robot is None
+        else robot_and_spheres(cfg.perception.bag_robot)
+    )
+    return Setup(robot, spheres, start, goal, planner, bag_robot, bag_spheres)
 
 
 AUTO_NEURAL = "gaide-hybrid"
@@ -214,16 +223,11 @@ def perception_stage(
     assert cfg.bag is not None  # checked by run.check_inputs
     joints = None if p.joints is None else np.asarray(p.joints)
     calibration = camera.result if camera.result is not None else camera.T_base_cam
-    # The arm in the bag: the run's robot, or another one (bag_robot) that the run's robot
-    # replaces; then its joint states are not the run's robot's.
-    bag_robot, bag_spheres = (
-        (setup.robot, setup.spheres) if p.bag_robot is None else robot_and_spheres(p.bag_robot)
-    )
     cloud, _, q = perceive_bag(
         cfg.bag,
         calibration,
-        bag_robot,
-        bag_spheres,
+        setup.bag_robot,
+        setup.bag_spheres,
         p,
         joints=joints,
         self_filter=p.self_filter,

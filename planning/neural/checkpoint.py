@@ -196,7 +196,8 @@ def load_checkpoint(
     if kind is not None and ckpt.kind != kind:
         raise ModelError(f"checkpoint {p} holds a {ckpt.kind} model, not {kind}")
     if robot is not None:
-        differs = signature_difference(ckpt.robot, robot_signature(robot))
+        ours = robot_signature(robot)
+        differs = signature_difference(ckpt.robot, ours)
         if differs is not None:
             raise ModelError(
                 f"checkpoint {p} was trained for another robot: {differs}; the classical and "
@@ -204,7 +205,7 @@ def load_checkpoint(
                 "work for any robot, or train weights for this one with `gaide train --robot`"
             )
         theirs = ckpt.robot.get("spheres")
-        if theirs is not None and theirs != robot_signature(robot)["spheres"]:
+        if theirs is not None and theirs != ours["spheres"]:
             # The same arm with another collision model: its labels were collision-free for
             # other spheres. Usable, but the user should know.
             log.warning(
