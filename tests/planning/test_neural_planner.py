@@ -122,6 +122,27 @@ def test_a_straight_sampler_solves_a_box_problem_and_every_edge_passes_the_harne
     assert res.stats["forward_passes"] >= 1
 
 
+def test_hybrid_mode_shortens_the_contracted_path_and_paper_mode_does_not(
+    robot: RobotModel, spheres: SphereModel, box: Any
+) -> None:
+    from planning.planner import path_length
+
+    checker = _checker(robot, spheres, box)
+    creep = Straight(step=0.02, noise=0.0)  # the fallback's bridge leaves corners to cut
+    res = NeuralPlanner("creep-hybrid", creep, mode="hybrid", rollouts=1, max_steps=6).plan(
+        checker, box.start, box.goal, budget_s=10.0, rng=np.random.default_rng(0)
+    )
+    assert res.status is PlanStatus.SUCCESS, res.detail
+    assert path_length(res.path) < res.stats["contracted_cost"]
+    assert check_path(res.path, box.start, box.goal, robot, spheres, box.world).ok
+    paper = NeuralPlanner("straight", Straight(noise=0.3), rollouts=16).plan(
+        checker, box.start, box.goal, budget_s=10.0, rng=np.random.default_rng(0)
+    )
+    assert "contracted_cost" not in paper.stats
+    with pytest.raises(PlanningError, match="shortcuts >= 0"):
+        NeuralPlanner("x", Straight(), shortcuts=-1)
+
+
 def test_contraction_drops_every_node_a_straight_edge_can_skip(
     robot: RobotModel, spheres: SphereModel
 ) -> None:
