@@ -41,6 +41,11 @@ class OracleCfg:
     # path in 6 runs; the 100,000-iteration rescue solved none of them, at 13 s each.
     rescue_iterations: int = 20_000
     max_step: float = 0.05  # rad, the label's largest joint-space step
+    # Among the refined paths within this share of the shortest, the label is the one whose
+    # first 0.3 rad leave the start most nearly toward the goal (0: the shortest, always).
+    # Two oracle runs often end around opposite sides of a board at costs 2-4% apart; a
+    # shared preference makes them choose alike (docs/results.md, "The oracle").
+    tie: float = 0.0
 
     def __post_init__(self) -> None:
         if self.runs < 1 or self.iterations < 1 or self.shortcuts < 0 or self.refine < 1:
@@ -48,6 +53,8 @@ class OracleCfg:
                 "the oracle needs runs >= 1, iterations >= 1, shortcuts >= 0, refine >= 1; got "
                 f"{self.runs}, {self.iterations}, {self.shortcuts}, {self.refine}"
             )
+        if not (0.0 <= self.tie <= 1.0):
+            raise PlanningError(f"the oracle's tie share must be in [0, 1]; got {self.tie}")
         if self.rescue_iterations < 0 or not (0 < self.max_step <= 1.0):
             raise PlanningError(
                 "the oracle needs rescue_iterations >= 0 and 0 < max_step <= 1 rad; got "
@@ -64,8 +71,9 @@ def oracle_path(
 ) -> PlanResult:
     """The shortest path found from ``start`` to ``goal`` (dof,) rad by ``cfg.runs``
     compiled RRT-Connect runs, each reduced to the waypoints a certified edge cannot skip,
-    the ``cfg.refine`` shortest of them shortened by ``cfg.shortcuts`` certified shortcuts,
-    resampled so that no step exceeds ``cfg.max_step`` rad (resampling keeps the curve, so
+    the ``cfg.refine`` shortest of them shortened by ``cfg.shortcuts`` certified shortcuts
+    (with ``cfg.tie``, the refined one within that share of the shortest whose first step
+    points most nearly at the goal), resampled so that no step exceeds ``cfg.max_step`` rad (resampling keeps the curve, so
     the label's edges lie on certified edges).
 
     Returns a :class:`PlanResult` named ``oracle``: SUCCESS with the path (K, dof), start
@@ -112,6 +120,12 @@ def oracle_path(
             stats=stats,
         )
     src, best = min(candidates, key=lambda c: path_length(c[1]))
+    if cfg.tie > 0 and len(candidates) > 1:
+        bound = (1.0 + cfg.tie) * path_length(best)
+        toward = (goal - start) / np.linalg.norm(goal - start)
+        near = [c for c in candidates[: cfg.refine] if path_length(c[1]) <= bound]
+        # max keeps the first of equals, so the choice is deterministic.
+        src, best = max(near, key=lambda c: float(first_step_direction(c[1], 0.3) @ toward))
     stats.update(winner=src, cost_before_resample=path_length(best))
     log.debug("oracle: %s wins with %.4f rad", src, path_length(best))
     dense = resample(best, cfg.max_step)

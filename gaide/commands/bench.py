@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +72,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     ora.add_argument(
         "--budget", type=float, default=5.0, help="seconds for each reference planner run"
     )
+    for flag, kind, what in (
+        ("--runs", int, "compiled RRT-Connect runs per label"),
+        ("--refine", int, "shortest runs that get the shortcuts"),
+        ("--shortcuts", int, "shortcut attempts per refined run"),
+        ("--tie", float, "label the refined run within this share of the shortest that leaves "
+         "the start most nearly toward the goal"),
+    ):  # fmt: skip
+        ora.add_argument(flag, type=kind, help=f"{what} (default: the data's oracle)")
     ora.add_argument("--robot", help="robot config YAML (default: UR5)")
     ora.add_argument("--json", help="write the figures to this JSON file")
     ora.set_defaults(func=cmd_oracle)
@@ -251,9 +259,11 @@ def cmd_oracle(args: argparse.Namespace) -> int:
     from planning.checker import make_checker
     from planning.families import generate_problem
     from planning.family_names import parse_families, split_seed
-    from planning.oracle import oracle_consistency, oracle_quality
+    from planning.oracle import OracleCfg, oracle_consistency, oracle_quality
 
     robot, spheres = robot_and_spheres(args.robot)
+    chosen = {k: getattr(args, k) for k in ("runs", "refine", "shortcuts", "tie")}
+    cfg = OracleCfg(**{k: v for k, v in chosen.items() if v is not None})
     rows, runs = [], []
     families: dict[str, dict[str, float | None]] = {}
     for fam in parse_families(args.families):
@@ -265,9 +275,12 @@ def cmd_oracle(args: argparse.Namespace) -> int:
                 problem.start,
                 problem.goal,
                 np.random.default_rng(i),
+                cfg=cfg,
                 reference_s=args.budget,
             )
-            c = oracle_consistency(checker, problem.start, problem.goal, (1000 + i, 2000 + i))
+            c = oracle_consistency(
+                checker, problem.start, problem.goal, (1000 + i, 2000 + i), cfg=cfg
+            )
             runs.append({"family": fam, "problem": problem.name, **q, **c})
         mine = [r for r in runs if r["family"] == fam]
         families[fam] = {
@@ -303,6 +316,7 @@ def cmd_oracle(args: argparse.Namespace) -> int:
                 },
                 "cost_spread": {k: v["cost_spread"] for k, v in families.items()},
                 "median_ratio": float(np.median(all_ratios)) if all_ratios else None,
+                "oracle": asdict(cfg),
                 "runs": runs,
             },
         )

@@ -43,6 +43,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     gen.add_argument("--oracle-iterations", type=int, help="iterations per oracle run (20,000)")
     gen.add_argument("--oracle-refine", type=int, help="shortest runs that get the shortcuts (2)")
     gen.add_argument("--oracle-shortcuts", type=int, help="shortcut attempts per refined run (250)")
+    gen.add_argument(
+        "--oracle-tie",
+        type=float,
+        help="among refined runs within this share of the shortest, label the one leaving "
+        "the start most nearly toward the goal (0: the shortest)",
+    )
     # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
     # the same labels under load). The old flags are still accepted and say so.
     for old_flag in ("--oracle-budget", "--oracle-rescue"):
@@ -125,6 +131,7 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
                     ("iterations", args.oracle_iterations),
                     ("refine", args.oracle_refine),
                     ("shortcuts", args.oracle_shortcuts),
+                    ("tie", args.oracle_tie),
                 )
                 if value is not None
             }

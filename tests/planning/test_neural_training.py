@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -68,6 +69,22 @@ def test_the_data_set_holds_resampled_oracle_paths_and_resumes(
     assert (copy / "shard-00001.npz").read_bytes() == (data_dir / "shard-00001.npz").read_bytes()
     with pytest.raises(ModelError, match="other settings"):
         generate(DataCfg(families=("bins",), paths=4, shard_size=2), copy, workers=1)
+
+
+def test_a_manifest_from_before_the_oracle_tie_share_still_resumes(
+    data_dir: Path, tmp_path: Path
+) -> None:
+    # Data made before OracleCfg.tie existed was labelled without one (tie 0).
+    for f in data_dir.iterdir():
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    del manifest["settings"]["oracle"]["tie"]
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    (tmp_path / "shard-00001.npz").unlink()
+    assert generate(DATA, tmp_path, workers=1)["complete"]
+    tied = replace(DATA, oracle=replace(DATA.oracle, tie=0.05))
+    with pytest.raises(ModelError, match="other settings"):
+        generate(tied, tmp_path, workers=1)
 
 
 def test_a_ray_cluster_makes_the_same_shards(data_dir: Path, tmp_path: Path) -> None:

@@ -99,6 +99,31 @@ def test_oracle_quality_compares_against_longer_runs(
         oracle_quality(wall, start, goal, rng, reference_planners=("rrtconnect",))
 
 
+def test_a_tie_share_labels_the_near_shortest_path_that_heads_for_the_goal(
+    wall: CollisionChecker,
+) -> None:
+    from planning.oracle import first_step_direction
+
+    start, goal = wall_problem()
+    toward = (goal - start) / np.linalg.norm(goal - start)
+    cfg = OracleCfg(runs=4, iterations=5_000, shortcuts=100, refine=4, rescue_iterations=0)
+    # The same seed gives the same candidates; only the choice among them differs.
+    plain, tied = (
+        oracle_path(wall, start, goal, np.random.default_rng(8), OracleCfg(**kw))
+        for kw in ({**vars(cfg)}, {**vars(cfg), "tie": 1.0})
+    )
+    assert plain.path is not None and tied.path is not None
+    assert plain.stats["candidates"] == tied.stats["candidates"]
+    shortest = min(c for _, c in plain.stats["candidates"])
+    assert plain.stats["cost_before_resample"] == shortest
+    assert shortest <= tied.stats["cost_before_resample"] <= 2.0 * shortest
+    heading = [float(first_step_direction(p.path, 0.3) @ toward) for p in (plain, tied)]
+    assert heading[1] >= heading[0] - 1e-9
+    assert edges_all_valid(wall, tied.path)
+    with pytest.raises(PlanningError, match="tie share"):
+        OracleCfg(tie=-0.1)
+
+
 def test_oracle_cost_matches_its_path(wall: CollisionChecker, rng: np.random.Generator) -> None:
     start, goal = wall_problem()
     res = oracle_path(wall, start, goal, rng, OracleCfg(runs=1, iterations=5_000, max_step=0.2))
@@ -130,9 +155,10 @@ def test_bench_oracle_writes_the_consistency_figures(tmp_path: Path) -> None:
 
     out = tmp_path / "oracle.json"
     res = run_cli("bench", "oracle", "--families", "tabletop", "--problems", "1", "--budget", "0.3",
-                  "--json", str(out))  # fmt: skip
+                  "--runs", "3", "--refine", "3", "--tie", "0.05", "--json", str(out))  # fmt: skip
     assert res.returncode == 0, res.stderr
     fig = json.loads(out.read_text())
+    assert fig["oracle"]["runs"] == 3 and fig["oracle"]["tie"] == 0.05
     assert set(fig["first_step_disagreement_deg"]) == {"tabletop"}
     assert fig["cost_spread"]["tabletop"] >= 1.0
     assert "first steps" in res.stdout
