@@ -73,8 +73,8 @@ def oracle_path(
     compiled RRT-Connect runs, each reduced to the waypoints a certified edge cannot skip,
     the ``cfg.refine`` shortest of them shortened by ``cfg.shortcuts`` certified shortcuts
     (with ``cfg.tie``, the refined one within that share of the shortest whose first step
-    points most nearly at the goal), resampled so that no step exceeds ``cfg.max_step`` rad (resampling keeps the curve, so
-    the label's edges lie on certified edges).
+    points most nearly at the goal), resampled so that no step exceeds ``cfg.max_step`` rad
+    (resampling keeps the curve, so the label's edges lie on certified edges).
 
     Returns a :class:`PlanResult` named ``oracle``: SUCCESS with the path (K, dof), start
     and goal exact; START_INVALID / GOAL_INVALID; FAILED when no run (nor the rescue run of
@@ -120,9 +120,10 @@ def oracle_path(
             stats=stats,
         )
     src, best = min(candidates, key=lambda c: path_length(c[1]))
-    if cfg.tie > 0 and len(candidates) > 1:
+    apart = float(np.linalg.norm(goal - start))
+    if cfg.tie > 0 and len(candidates) > 1 and apart > 0:
         bound = (1.0 + cfg.tie) * path_length(best)
-        toward = (goal - start) / np.linalg.norm(goal - start)
+        toward = (goal - start) / apart
         near = [c for c in candidates[: cfg.refine] if path_length(c[1]) <= bound]
         # max keeps the first of equals, so the choice is deterministic.
         src, best = max(near, key=lambda c: float(first_step_direction(c[1], 0.3) @ toward))

@@ -162,3 +162,8 @@ def test_bench_oracle_writes_the_consistency_figures(tmp_path: Path) -> None:
     assert set(fig["first_step_disagreement_deg"]) == {"tabletop"}
     assert fig["cost_spread"]["tabletop"] >= 1.0
     assert "first steps" in res.stdout
+    bad = tmp_path / "bad.json"
+    res = run_cli("bench", "oracle", "--families", "tabletop", "--problems", "1", "--tie", "2",
+                  "--json", str(bad))  # fmt: skip
+    assert res.returncode != 0 and not bad.exists()
+    assert len(res.stderr.strip().splitlines()) == 1 and "tie share" in res.stderr
