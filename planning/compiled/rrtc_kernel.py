@@ -24,7 +24,7 @@ from numba import njit
 from gaide_core.types import FloatArray, IntArray
 from planning.compiled.geometry import Field
 from planning.compiled.layout import Off, offsets
-from planning.compiled.validity import config_ok, edge_ok
+from planning.compiled.validity import config_ok, edge_ok, edge_screen
 
 RUNNING = 0
 JOINED = 1
@@ -79,6 +79,8 @@ def _valid_move(
         return False
     for j in range(o.dof):
         a[j] = nodes[tree, k, j]
+    if not edge_screen(I, F, field, X, o, a, q, margin):
+        return False
     return edge_ok(I, F, field, X, o, a, q, margin, resolution)
 
 

@@ -22,7 +22,7 @@ from numba import njit
 from gaide_core.types import FloatArray, IntArray
 from planning.compiled.geometry import Field
 from planning.compiled.layout import Off, offsets
-from planning.compiled.validity import edge_ok
+from planning.compiled.validity import edge_ok, edge_screen
 
 
 @njit(cache=True, inline="always")
@@ -39,6 +39,8 @@ def _edge(
     I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, a: FloatArray,
     b: FloatArray, margin: float, resolution: float,
 ) -> bool:  # fmt: skip
+    if not edge_screen(I, F, field, X, o, a, b, margin):
+        return False
     return edge_ok(I, F, field, X, o, a, b, margin, resolution)
 
 

@@ -221,6 +221,26 @@ def edge_ok(
     return True
 
 
+@njit(cache=True, inline="always")
+def edge_screen(
+    I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, q0: FloatArray,
+    q1: FloatArray, margin: float,
+) -> bool:  # fmt: skip
+    """False when a configuration at 1/2, 1/4 or 3/4 of the edge q0 -> q1 is invalid.
+
+    A cheap screen for the planners, before :func:`edge_ok`: three configuration checks
+    (~0.6 us each) against a certification that runs tens of samples (~2 us each) before it
+    reaches a collision. It can only add rejections (a point invalid by the lattice's lower
+    bound might lie on an edge the certification would pass), so a planner that screens
+    keeps every edge it takes certified; answers to edge queries never screen.
+    """
+    for f in (0.5, 0.25, 0.75):
+        set_at(X, o, q0, q1, f)
+        if not config_ok(I, F, field, X, o, margin):
+            return False
+    return True
+
+
 # -- entry points (called from Python) ------------------------------------------------------
 
 
@@ -259,6 +279,15 @@ def edges_valid(I, F, field, Q0, Q1, margin, resolution, out):  # type: ignore[n
     X = np.empty(o.xsize)
     for e in range(Q0.shape[0]):
         out[e] = edge_ok(I, F, field, X, o, Q0[e], Q1[e], margin, resolution)
+
+
+@njit(cache=True)
+def edges_screened(I, F, field, Q0, Q1, margin, out):  # type: ignore[no-untyped-def]
+    """``out[e]``: does the edge Q0[e] -> Q1[e] pass the planners' :func:`edge_screen`?"""
+    o = offsets(I)
+    X = np.empty(o.xsize)
+    for e in range(Q0.shape[0]):
+        out[e] = edge_screen(I, F, field, X, o, Q0[e], Q1[e], margin)
 
 
 @njit(cache=True)

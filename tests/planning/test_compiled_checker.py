@@ -100,6 +100,28 @@ def test_edges_agree_exactly(
     np.testing.assert_array_equal(fast.edge_steps(starts, ends), ref.edge_steps(starts, ends))
 
 
+def test_the_planners_screen_only_adds_rejections(
+    worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
+) -> None:
+    # rrtc and the shortcut pass screen an edge by its points at 1/4, 1/2 and 3/4 before
+    # certifying it: the screen is exactly the reference's validity of those points.
+    from planning.compiled import validity
+
+    world = worlds["cloud"]
+    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
+    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    rng = np.random.default_rng(4)
+    starts = _near(ref, rng, 2000)
+    starts = starts[ref.config_valid(starts)][:200]
+    ends = np.clip(starts + rng.normal(size=starts.shape) * 0.6, robot.lower, robot.upper)
+    screened = np.empty(len(starts), bool)
+    validity.edges_screened(*fast.tables.args(), starts, ends, fast.margin, screened)
+    points = np.stack([starts + f * (ends - starts) for f in (0.25, 0.5, 0.75)], axis=1)
+    expected = ref.config_valid(points.reshape(-1, robot.dof)).reshape(-1, 3).all(axis=1)
+    np.testing.assert_array_equal(screened, expected)
+    assert 0.1 < screened.mean() < 0.9, "edges the screen passes and rejects are tested"
+
+
 def test_a_certified_edge_keeps_the_margin_at_every_point(
     worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
 ) -> None:
