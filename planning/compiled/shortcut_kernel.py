@@ -8,9 +8,9 @@ then, for each pair of uniform numbers ``u[i]`` (drawn by the caller's seeded ge
 joins the two points of the path at those arc-length fractions by a straight edge when that
 edge and the two pieces of the edges it starts and ends on are certified and it saves more
 than ``min_saving`` rad; a final vertex reduction follows. Every candidate edge is
-screened (:func:`~planning.compiled.validity.edge_screen`) before it is certified. Only strictly shorter
-replacements are taken, so the path never grows longer; its first and last rows never
-change.
+screened (:func:`~planning.compiled.validity.edge_screen`) before it is certified. Only
+strictly shorter replacements are taken, so the path never grows longer; its first and last
+rows never change.
 """
 
 from __future__ import annotations

@@ -100,11 +100,12 @@ def test_edges_agree_exactly(
     np.testing.assert_array_equal(fast.edge_steps(starts, ends), ref.edge_steps(starts, ends))
 
 
-def test_the_planners_screen_only_adds_rejections(
+def test_the_planners_screen_is_the_validity_of_three_points(
     worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
 ) -> None:
     # rrtc and the shortcut pass screen an edge by its points at 1/4, 1/2 and 3/4 before
-    # certifying it: the screen is exactly the reference's validity of those points.
+    # certifying it: the screen is exactly the reference's validity of those points (that
+    # the planners' paths stay certified is held in test_rrtc.py).
     from planning.compiled import validity
 
     world = worlds["cloud"]
