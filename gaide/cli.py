@@ -20,7 +20,7 @@ import threading
 import time
 import traceback
 from collections.abc import Iterator
-from types import FrameType
+from types import CodeType, FrameType
 from typing import Any, NoReturn
 
 from gaide_core.errors import GaideError
@@ -98,37 +98,65 @@ def _ctrl_c_after_imports() -> Iterator[None]:
     import to end. The commands import their libraries when they need them, and a C
     extension interrupted in its initialization fails with an ImportError, which some
     libraries take for "optional feature missing" and go on: the interrupt would be lost
-    (the run finishing with 0) or turn into an internal error."""
+    (the run finishing with 0) or turn into an internal error.
+
+    An interrupt that lands in a finalizer (a ``__del__`` or a weak reference's callback,
+    which the garbage collector runs in the middle of any code) is one Python prints and
+    drops: it is delivered again, to whatever runs next."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     held = threading.Event()
 
-    def release_after_import() -> None:
+    def must_wait(frame: FrameType | None) -> bool:
+        return _importing(frame) or _inside(frame, on_unraisable.__code__)
+
+    def release_when_free() -> None:
         main_id = threading.main_thread().ident
-        while _importing(sys._current_frames().get(main_id or 0)):
+        while must_wait(sys._current_frames().get(main_id or 0)):
             time.sleep(0.05)
         held.clear()
-        _thread.interrupt_main()  # calls the handler again, now outside the import
+        _thread.interrupt_main()  # calls the handler again, now where it can raise
 
-    def on_sigint(signum: int, frame: FrameType | None) -> None:
-        if not _importing(frame):
-            raise KeyboardInterrupt
+    def hold() -> None:
         if not held.is_set():
             held.set()
-            threading.Thread(target=release_after_import, daemon=True).start()
+            threading.Thread(target=release_when_free, daemon=True).start()
 
+    def on_sigint(signum: int, frame: FrameType | None) -> None:
+        if not must_wait(frame):
+            raise KeyboardInterrupt
+        hold()
+
+    def on_unraisable(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            hold()
+        else:
+            previous_hook(unraisable)
+
+    previous_hook = sys.unraisablehook
     previous = signal.signal(signal.SIGINT, on_sigint)
+    sys.unraisablehook = on_unraisable
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = previous_hook
 
 
 def _importing(frame: FrameType | None) -> bool:
     """Is ``frame`` (or a caller of it) loading a module?"""
     while frame is not None:
         if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _inside(frame: FrameType | None, code: CodeType) -> bool:
+    """Is ``frame`` (or a caller of it) running ``code``?"""
+    while frame is not None:
+        if frame.f_code is code:
             return True
         frame = frame.f_back
     return False

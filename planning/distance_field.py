@@ -11,6 +11,8 @@ are conservative (they never call a colliding sphere free) at a cost of at most
 from __future__ import annotations
 
 import logging
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy import ndimage
@@ -25,6 +27,26 @@ log = logging.getLogger(__name__)
 # mask, and scipy's float64 distance transform with its int32 feature indices.
 _BYTES_PER_CELL = 4 + 1 + 8 + 12
 MAX_LATTICE_BYTES = 4 * 2**30
+
+
+def _nearest_within(tree: cKDTree, queries: Array, bound: float) -> Array:
+    """Distance from each query to the nearest point of ``tree`` (``inf`` beyond ``bound``),
+    on all cores.
+
+    Not scipy's own ``workers=-1``: it joins its threads without a ``finally``, so a Ctrl-C
+    during the join frees the result while they still write into it (a segfault, met when
+    ``gaide demo`` was interrupted here). These threads are ours and hold what they use; an
+    interrupt cancels the chunks not started and waits for the running ones (the k-d tree
+    query releases the GIL, so they run in parallel all the same)."""
+    chunks = np.array_split(queries, 4 * (os.cpu_count() or 1))
+    pool = ThreadPoolExecutor(os.cpu_count())
+    try:
+        parts = list(pool.map(lambda q: tree.query(q, distance_upper_bound=bound)[0], chunks))
+    except BaseException:
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown()
+    return np.concatenate(parts) if parts else np.zeros(0)
 
 
 class CloudWorld:
@@ -68,8 +90,7 @@ class CloudWorld:
         # it only to pick the lattice points whose exact distance is worth computing.
         approx = ndimage.distance_transform_edt(~occupied) * voxel
         near = np.argwhere(approx < band + voxel)
-        tree = cKDTree(pts)
-        dist, _ = tree.query(self.origin + near * voxel, distance_upper_bound=band, workers=-1)
+        dist = _nearest_within(cKDTree(pts), self.origin + near * voxel, band)
         field = np.full(self.shape, band, np.float32)
         field[near[:, 0], near[:, 1], near[:, 2]] = np.minimum(dist, band)
         self.field = field

@@ -442,3 +442,24 @@ def test_ctrl_c_is_one_line_and_exit_130(tmp_path: Path) -> None:
     staged = [p for p in out.rglob(".*")] if out.exists() else []
     assert [p.name for p in staged if p.name != ".gaide-run.lock"] == [], staged
     assert not (out / ".gaide-run.lock").exists()
+
+
+def test_ctrl_c_that_a_finalizer_drops_is_delivered_again() -> None:
+    """The garbage collector runs finalizers in the middle of any code, and Python prints
+    and drops what they raise: an interrupt landing there (``gaide demo`` met one in a weak
+    reference's callback, and ran to the end) must still stop the command."""
+    import signal
+    import time
+
+    from gaide.cli import _ctrl_c_after_imports
+
+    class Finalized:
+        def __del__(self) -> None:
+            signal.raise_signal(signal.SIGINT)  # the handler runs here, inside the finalizer
+            time.sleep(0.001)
+
+    give_up = time.monotonic() + 10.0  # the interrupt comes through within milliseconds
+    with pytest.raises(KeyboardInterrupt), _ctrl_c_after_imports():
+        Finalized()  # dropped at once
+        while time.monotonic() < give_up:
+            time.sleep(0.01)

@@ -1,5 +1,8 @@
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -13,6 +16,7 @@ from planning.distance_field import CloudWorld
 from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
+from tests.conftest import ROOT
 
 
 def test_distance_field_is_a_tight_lower_bound(rng: np.random.Generator) -> None:
@@ -166,3 +170,35 @@ def test_the_coarse_first_pass_never_changes_the_answer(
     assert np.array_equal(single, full)
     assert full.any() and not full.all(), "the sample needs valid and invalid edges"
     assert (checker.edge_steps(q0, q1) >= 32).sum() > 30, "the sample needs long edges"
+
+
+def test_the_lattice_queries_survive_ctrl_c() -> None:
+    """Ctrl-C during the lattice's k-d tree queries unwinds; it must not crash the process.
+    scipy's own threaded query (``workers=-1``) segfaults here nearly every time: its threads
+    go on reading the tree the interrupt frees (``gaide demo`` died so, 1 run in 3)."""
+    child = """
+import os, signal, threading, time
+import numpy as np
+from scipy.spatial import cKDTree
+from planning.distance_field import _nearest_within
+rng = np.random.default_rng(0)
+cloud = rng.uniform(0, 0.6, (20000, 3))
+end = time.monotonic() + 3.0
+def pester():
+    while time.monotonic() < end:
+        time.sleep(0.013)
+        os.kill(os.getpid(), signal.SIGINT)
+threading.Thread(target=pester, daemon=True).start()
+interrupted = 0
+while time.monotonic() < end + 0.2:
+    try:
+        _nearest_within(cKDTree(cloud), rng.uniform(0, 0.6, (200000, 3)), 0.15)
+    except KeyboardInterrupt:
+        interrupted += 1
+print(interrupted)
+"""
+    proc = subprocess.run(
+        [sys.executable, "-c", child], capture_output=True, text=True, cwd=ROOT, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert int(proc.stdout) > 20, "the interrupts reached the queries"
