@@ -183,6 +183,7 @@ from scipy.spatial import cKDTree
 from planning.distance_field import _nearest_within
 rng = np.random.default_rng(0)
 cloud = rng.uniform(0, 0.6, (20000, 3))
+signal.signal(signal.SIGINT, signal.default_int_handler)  # a shell's background job ignores it
 end = time.monotonic() + 3.0
 def pester():
     while time.monotonic() < end:
