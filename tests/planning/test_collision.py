@@ -172,6 +172,16 @@ def test_the_coarse_first_pass_never_changes_the_answer(
     assert (checker.edge_steps(q0, q1) >= 32).sum() > 30, "the sample needs long edges"
 
 
+def test_the_lattice_queries_are_scipys(rng: np.random.Generator) -> None:
+    from planning.distance_field import _nearest_within
+
+    tree = cKDTree(rng.uniform(0, 0.5, (3000, 3)))
+    queries = rng.uniform(-0.2, 0.7, (10_001, 3))  # not a multiple of the chunk count
+    want = tree.query(queries, distance_upper_bound=0.1)[0]
+    assert np.array_equal(_nearest_within(tree, queries, 0.1), want)
+    assert _nearest_within(tree, queries[:0], 0.1).shape == (0,)
+
+
 def test_the_lattice_queries_survive_ctrl_c() -> None:
     """Ctrl-C during the lattice's k-d tree queries unwinds; it must not crash the process.
     scipy's own threaded query (``workers=-1``) segfaults here nearly every time: its threads
