@@ -9,6 +9,7 @@ OMPL's asymptotically optimal planners (a benchmark, budgeted in seconds).
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import time
@@ -26,6 +27,11 @@ from planning.planner import PlanResult, PlanStatus, path_length, prepare_plan
 from planning.rrtc import CompiledRRTConnect, RRTCCfg, shorten
 
 log = logging.getLogger(__name__)
+
+
+#: The largest extra clearance (m) a label may ask for: a cloud world's lattice is exact a
+#: little over 0.13 m from the cloud, and the largest sphere radius and the margin come first.
+MAX_CLEARANCE = 0.05
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -46,6 +52,12 @@ class OracleCfg:
     # Two oracle runs often end around opposite sides of a board at costs 2-4% apart; a
     # shared preference makes them choose alike (docs/results.md, "The oracle").
     tie: float = 0.0
+    # Extra clearance (m) the label keeps where it can: the search and the shortcuts run with
+    # the margin raised by up to this much, and by no more than half the start's and the
+    # goal's own clearance beyond it; a problem left unsolved so is solved at the plain margin. Labels
+    # shortcut hard against the obstacles teach a network to step into them
+    # (docs/results.md, "Retraining on the tie-share set").
+    clearance: float = 0.0
 
     def __post_init__(self) -> None:
         if self.runs < 1 or self.iterations < 1 or self.shortcuts < 0 or self.refine < 1:
@@ -55,6 +67,11 @@ class OracleCfg:
             )
         if not (0.0 <= self.tie <= 1.0):
             raise PlanningError(f"the oracle's tie share must be in [0, 1]; got {self.tie}")
+        if not (0.0 <= self.clearance <= MAX_CLEARANCE):
+            raise PlanningError(
+                f"the oracle's extra clearance must be in [0, {MAX_CLEARANCE}] m; got "
+                f"{self.clearance}"
+            )
         if self.rescue_iterations < 0 or not (0 < self.max_step <= 1.0):
             raise PlanningError(
                 "the oracle needs rescue_iterations >= 0 and 0 < max_step <= 1 rad; got "
@@ -74,41 +91,40 @@ def oracle_path(
     the ``cfg.refine`` shortest of them shortened by ``cfg.shortcuts`` certified shortcuts
     (with ``cfg.tie``, the refined one within that share of the shortest whose first step
     points most nearly at the goal), resampled so that no step exceeds ``cfg.max_step`` rad
-    (resampling keeps the curve, so the label's edges lie on certified edges).
+    (resampling keeps the curve, so the label's edges lie on certified edges). With
+    ``cfg.clearance``, all of it runs at a margin raised as far as the ends allow, and again
+    at the checker's own margin if that found no path.
 
     Returns a :class:`PlanResult` named ``oracle``: SUCCESS with the path (K, dof), start
     and goal exact; START_INVALID / GOAL_INVALID; FAILED when no run (nor the rescue run of
     ``cfg.rescue_iterations``) found a path. ``stats`` hold every run's outcome and cost
-    (rad), the winner, and the cost before resampling.
+    (rad), the winner, the cost before resampling, and the margin (m) the label keeps.
     """
     t0 = time.perf_counter()
     cfg = cfg or OracleCfg()
     start, goal, refused = prepare_plan("oracle", checker, start, goal, t0)
     if refused is not None:
         return refused
-    search = CompiledRRTConnect(RRTCCfg(max_iterations=cfg.iterations, simplify=False))
-    candidates: list[tuple[str, Array]] = []
     runs: list[tuple[str, str, int]] = []  # (run, status, iterations)
-    for k in range(cfg.runs):
-        res = search.search(checker, start, goal, rng)
-        runs.append((f"rrtc#{k}", res.status.value, int(res.stats.get("iterations", 0))))
-        if res.path is not None:
-            candidates.append((f"rrtc#{k}", shorten(checker, res.path, rng, 0)))
-    if not candidates and cfg.rescue_iterations:
-        rescue = CompiledRRTConnect(RRTCCfg(max_iterations=cfg.rescue_iterations, simplify=False))
-        res = rescue.search(checker, start, goal, rng)
-        runs.append(("rescue", res.status.value, int(res.stats.get("iterations", 0))))
-        if res.path is not None:
-            candidates.append(("rescue", shorten(checker, res.path, rng, 0)))
+    candidates: list[tuple[str, Array]] = []
+    kept = checker
+    wide = _with_clearance(checker, start, goal, cfg.clearance)
+    if wide is not None:
+        candidates = _candidates(wide, start, goal, rng, cfg, runs)
+        kept = wide
+    if not candidates:
+        candidates = _candidates(checker, start, goal, rng, cfg, runs)
+        kept = checker
     # Shortcuts are most of the oracle's work: only the shortest runs (after the cheap vertex
     # reduction) get them.
     candidates.sort(key=lambda c: path_length(c[1]))
     candidates[: cfg.refine] = [
-        (src, shorten(checker, p, rng, cfg.shortcuts)) for src, p in candidates[: cfg.refine]
+        (src, shorten(kept, p, rng, cfg.shortcuts)) for src, p in candidates[: cfg.refine]
     ]
     stats: dict[str, Any] = {
         "candidates": [(src, path_length(p)) for src, p in candidates],
         "runs": runs,
+        "margin": kept.margin,
     }
     if not candidates:
         return PlanResult(
@@ -131,6 +147,50 @@ def oracle_path(
     log.debug("oracle: %s wins with %.4f rad", src, path_length(best))
     dense = resample(best, cfg.max_step)
     return PlanResult("oracle", PlanStatus.SUCCESS, dense, time.perf_counter() - t0, stats=stats)
+
+
+def _with_clearance(
+    checker: CollisionChecker, start: Array, goal: Array, extra: float
+) -> CollisionChecker | None:
+    """A copy of ``checker`` whose margin is raised by up to ``extra`` m, and by at most half
+    the start's and the goal's clearance beyond the margin (an edge cannot leave an end that
+    sits on its margin); None when it cannot be raised. (The kernels take the margin per
+    call, so the copy shares the checker's tables.)"""
+    if extra <= 0:
+        return None
+    ends = float(checker.world_clearance(np.stack([start, goal])).min())
+    margin = checker.margin + min(extra, 0.5 * (ends - checker.margin))
+    if not margin > checker.margin:
+        return None
+    wide = copy.copy(checker)
+    wide.margin = margin
+    return wide
+
+
+def _candidates(
+    checker: CollisionChecker,
+    start: Array,
+    goal: Array,
+    rng: np.random.Generator,
+    cfg: OracleCfg,
+    runs: list[tuple[str, str, int]],
+) -> list[tuple[str, Array]]:
+    """The vertex-reduced paths of ``cfg.runs`` compiled RRT-Connect runs (and of the rescue
+    run when none found one); each run's outcome is appended to ``runs``."""
+    search = CompiledRRTConnect(RRTCCfg(max_iterations=cfg.iterations, simplify=False))
+    found: list[tuple[str, Array]] = []
+    for k in range(cfg.runs):
+        res = search.search(checker, start, goal, rng)
+        runs.append((f"rrtc#{k}", res.status.value, int(res.stats.get("iterations", 0))))
+        if res.path is not None:
+            found.append((f"rrtc#{k}", shorten(checker, res.path, rng, 0)))
+    if not found and cfg.rescue_iterations:
+        rescue = CompiledRRTConnect(RRTCCfg(max_iterations=cfg.rescue_iterations, simplify=False))
+        res = rescue.search(checker, start, goal, rng)
+        runs.append(("rescue", res.status.value, int(res.stats.get("iterations", 0))))
+        if res.path is not None:
+            found.append(("rescue", shorten(checker, res.path, rng, 0)))
+    return found
 
 
 def oracle_quality(

@@ -78,6 +78,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         ("--shortcuts", int, "shortcut attempts per refined run"),
         ("--tie", float, "label the refined run within this share of the shortest that leaves "
          "the start most nearly toward the goal"),
+        ("--clearance", float, "extra clearance (m) the label keeps where the ends allow"),
     ):  # fmt: skip
         ora.add_argument(flag, type=kind, help=f"{what} (default: the data's oracle)")
     ora.add_argument("--robot", help="robot config YAML (default: UR5)")
@@ -262,7 +263,7 @@ def cmd_oracle(args: argparse.Namespace) -> int:
     from planning.oracle import OracleCfg, oracle_consistency, oracle_quality
 
     robot, spheres = robot_and_spheres(args.robot)
-    chosen = {k: getattr(args, k) for k in ("runs", "refine", "shortcuts", "tie")}
+    chosen = {k: getattr(args, k) for k in ("runs", "refine", "shortcuts", "tie", "clearance")}
     cfg = OracleCfg(**{k: v for k, v in chosen.items() if v is not None})
     rows, runs = [], []
     families: dict[str, dict[str, float | None]] = {}

@@ -49,6 +49,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="among refined runs within this share of the shortest, label the one leaving "
         "the start most nearly toward the goal (0: the shortest)",
     )
+    gen.add_argument(
+        "--oracle-clearance",
+        type=float,
+        help="extra clearance (m) the labels keep where the start and goal allow (0: none)",
+    )
     # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
     # the same labels under load). The old flags are still accepted and say so.
     for old_flag in ("--oracle-budget", "--oracle-rescue"):
@@ -132,6 +137,7 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
                     ("refine", args.oracle_refine),
                     ("shortcuts", args.oracle_shortcuts),
                     ("tie", args.oracle_tie),
+                    ("clearance", args.oracle_clearance),
                 )
                 if value is not None
             }

@@ -108,10 +108,12 @@ def generate(
     done: dict[str, dict[str, Any]] = {}
     if manifest_path.exists():
         old = read_manifest(out)
-        # Manifests written before the oracle had a tie share were made without one.
+        # Manifests written before the oracle had a tie share or an extra clearance were made
+        # without them.
         old_oracle = old["settings"].get("oracle")
         if isinstance(old_oracle, dict):
             old_oracle.setdefault("tie", 0.0)
+            old_oracle.setdefault("clearance", 0.0)
         if old["settings"] != settings or old["format"] != FORMAT:
             raise ModelError(
                 f"{out} holds data made with other settings ({old['settings']}); use another "

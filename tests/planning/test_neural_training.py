@@ -74,11 +74,12 @@ def test_the_data_set_holds_resampled_oracle_paths_and_resumes(
 def test_a_manifest_from_before_the_oracle_tie_share_still_resumes(
     data_dir: Path, tmp_path: Path
 ) -> None:
-    # Data made before OracleCfg.tie existed was labelled without one (tie 0).
+    # Data made before OracleCfg.tie and .clearance existed was labelled without them (0).
     for f in data_dir.iterdir():
         (tmp_path / f.name).write_bytes(f.read_bytes())
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     del manifest["settings"]["oracle"]["tie"]
+    del manifest["settings"]["oracle"]["clearance"]
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
     (tmp_path / "shard-00001.npz").unlink()
     assert generate(DATA, tmp_path, workers=1)["complete"]

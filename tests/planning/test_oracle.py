@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 from gaide_core.errors import PlanningError
 from planning.collision import CollisionChecker
 from planning.oracle import OracleCfg, oracle_path, oracle_quality
+from planning.path_ops import resample
 from planning.planner import PlanStatus, path_length
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
@@ -122,6 +124,36 @@ def test_a_tie_share_labels_the_near_shortest_path_that_heads_for_the_goal(
     assert edges_all_valid(wall, tied.path)
     with pytest.raises(PlanningError, match="tie share"):
         OracleCfg(tie=-0.1)
+
+
+def test_an_extra_clearance_keeps_the_label_that_far_from_the_wall(
+    wall: CollisionChecker,
+) -> None:
+    start, goal = wall_problem()
+    ends = float(wall.world_clearance(np.stack([start, goal])).min())
+    extra = 0.03
+    assert ends > wall.margin + extra, "the wall problem's ends are far from the wall"
+    plain, wide = (
+        oracle_path(wall, start, goal, np.random.default_rng(3), replace(QUICK, clearance=c))
+        for c in (0.0, extra)
+    )
+    assert plain.path is not None and wide.path is not None
+    assert plain.stats["margin"] == wall.margin
+    assert wide.stats["margin"] == pytest.approx(wall.margin + extra)
+    dense = resample(wide.path, 0.005)
+    assert wall.world_clearance(dense).min() >= wall.margin + extra
+    assert wall.world_clearance(resample(plain.path, 0.005)).min() < wall.margin + extra
+    assert edges_all_valid(wall, wide.path)
+    # An end closer than that: the margin rises by half its clearance beyond the margin.
+    near = start.copy()
+    while float(wall.world_clearance(near[None])[0]) > wall.margin + 0.01:
+        near[0] -= 0.01  # swing toward the wall
+    tight = oracle_path(wall, near, goal, np.random.default_rng(3), replace(QUICK, clearance=extra))
+    assert tight.path is not None, tight.detail
+    reach = float(wall.world_clearance(near[None])[0])
+    assert tight.stats["margin"] == pytest.approx(wall.margin + 0.5 * (reach - wall.margin))
+    with pytest.raises(PlanningError, match="extra clearance"):
+        OracleCfg(clearance=0.2)
 
 
 def test_oracle_cost_matches_its_path(wall: CollisionChecker, rng: np.random.Generator) -> None:
