@@ -34,6 +34,7 @@ and is the default everywhere; this class is the reference the tests compare it 
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
@@ -136,6 +137,15 @@ class CollisionChecker(Protocol):
 
     def sphere_centers(self, Q: Array) -> Array: ...
 
+    @property
+    def max_margin(self) -> float:
+        """The largest margin (m) the world's distances are exact for (inf: any)."""
+        ...
+
+    def with_margin(self, margin: float) -> CollisionChecker:
+        """This checker at another margin (m); PlanningError outside [0, max_margin]."""
+        ...
+
 
 @runtime_checkable
 class KernelTablesSource(Protocol):
@@ -169,17 +179,7 @@ class SphereCollisionChecker:
         self.world: World = world if world is not None else EmptyWorld()
         self.margin = robot.config.collision_margin if margin is None else float(margin)
         self.resolution = robot.config.edge_resolution if resolution is None else float(resolution)
-        if self.margin < 0 or self.resolution <= 0:
-            raise PlanningError(
-                f"need margin >= 0 and resolution > 0 (m); got {self.margin}, {self.resolution}"
-            )
-        exact = getattr(self.world, "exact_up_to", np.inf)
-        if exact < spheres.radii.max() + self.margin:
-            raise PlanningError(
-                f"the world's distances are exact only up to {exact:.3f} m, less than the "
-                f"largest sphere radius + margin ({spheres.radii.max() + self.margin:.3f} m): "
-                "build it with a wider band"
-            )
+        self._check_margin()
         self.kin = BatchKinematics(robot)
         link_of = [robot.links[name] for name in spheres.links]
         self.sphere_joint = np.array([lk.joint_id for lk in link_of], np.int64)
@@ -210,6 +210,32 @@ class SphereCollisionChecker:
         self._link_groups = self._group_pairs_by_link()
         self._displacement = self._displacement_bounds()
         self._pair_displacement = self.pair_displacement()
+
+    def _check_margin(self) -> None:
+        if self.margin < 0 or self.resolution <= 0:
+            raise PlanningError(
+                f"need margin >= 0 and resolution > 0 (m); got {self.margin}, {self.resolution}"
+            )
+        if self.margin > self.max_margin:
+            exact = getattr(self.world, "exact_up_to", np.inf)
+            reach = self.spheres.radii.max() + self.margin
+            raise PlanningError(
+                f"the world's distances are exact only up to {exact:.3f} m, less than the "
+                f"largest sphere radius + margin ({reach:.3f} m): build it with a wider band"
+            )
+
+    @property
+    def max_margin(self) -> float:
+        """The largest margin (m) the world's distances are exact for (inf: any)."""
+        return float(getattr(self.world, "exact_up_to", np.inf) - self.spheres.radii.max())
+
+    def with_margin(self, margin: float) -> SphereCollisionChecker:
+        """This checker at another margin (m), sharing everything else (the kernels take the
+        margin per call); PlanningError for one outside [0, max_margin]."""
+        other = copy.copy(self)
+        other.margin = float(margin)
+        other._check_margin()
+        return other
 
     def _group_pairs_by_link(self) -> list[tuple[int, int, Array, float]]:
         """Self-collision pairs grouped by link pair, with one bounding sphere per link (an

@@ -9,7 +9,6 @@ OMPL's asymptotically optimal planners (a benchmark, budgeted in seconds).
 
 from __future__ import annotations
 
-import copy
 import logging
 import math
 import time
@@ -29,8 +28,8 @@ from planning.rrtc import CompiledRRTConnect, RRTCCfg, shorten
 log = logging.getLogger(__name__)
 
 
-#: The largest extra clearance (m) a label may ask for: a cloud world's lattice is exact a
-#: little over 0.13 m from the cloud, and the largest sphere radius and the margin come first.
+#: The largest extra clearance (m) a label may ask for (a cloud world's lattice limits it
+#: further: see ``CollisionChecker.max_margin``).
 MAX_CLEARANCE = 0.05
 
 
@@ -54,8 +53,8 @@ class OracleCfg:
     tie: float = 0.0
     # Extra clearance (m) the label keeps where it can: the search and the shortcuts run with
     # the margin raised by up to this much, and by no more than half the start's and the
-    # goal's own clearance beyond it; a problem left unsolved so is solved at the plain margin. Labels
-    # shortcut hard against the obstacles teach a network to step into them
+    # goal's own clearance beyond it; a problem left unsolved so is solved at the plain
+    # margin. Labels shortcut hard against the obstacles teach a network to step into them
     # (docs/results.md, "Retraining on the tie-share set").
     clearance: float = 0.0
 
@@ -152,19 +151,15 @@ def oracle_path(
 def _with_clearance(
     checker: CollisionChecker, start: Array, goal: Array, extra: float
 ) -> CollisionChecker | None:
-    """A copy of ``checker`` whose margin is raised by up to ``extra`` m, and by at most half
-    the start's and the goal's clearance beyond the margin (an edge cannot leave an end that
-    sits on its margin); None when it cannot be raised. (The kernels take the margin per
-    call, so the copy shares the checker's tables.)"""
+    """``checker`` with its margin raised by up to ``extra`` m: by at most half the start's
+    and the goal's clearance beyond the margin (an edge cannot leave an end that sits on its
+    margin), and no higher than the world's distances are exact for; None when it cannot be
+    raised."""
     if extra <= 0:
         return None
     ends = float(checker.world_clearance(np.stack([start, goal])).min())
-    margin = checker.margin + min(extra, 0.5 * (ends - checker.margin))
-    if not margin > checker.margin:
-        return None
-    wide = copy.copy(checker)
-    wide.margin = margin
-    return wide
+    raised = min(checker.margin + min(extra, 0.5 * (ends - checker.margin)), checker.max_margin)
+    return checker.with_margin(raised) if raised > checker.margin else None
 
 
 def _candidates(
