@@ -33,9 +33,9 @@ def _nearest_within(tree: cKDTree, queries: Array, bound: float) -> Array:
     """Distance from each query to the nearest point of ``tree`` (``inf`` beyond ``bound``),
     on all cores.
 
-    Not scipy's own ``workers=-1``: it joins its threads without a ``finally``, so a Ctrl-C
-    during the join frees the result while they still write into it (a segfault, met when
-    ``gaide demo`` was interrupted here). These threads are ours and hold what they use; an
+    Not scipy's own ``workers=-1``: a Ctrl-C while it waits for its threads unwinds past
+    them, freeing the tree and the result they still use (a segfault, met when ``gaide demo``
+    was interrupted here). These threads are ours and hold what they use; an
     interrupt cancels the chunks not started and waits for the running ones (the k-d tree
     query releases the GIL, so they run in parallel all the same)."""
     chunks = np.array_split(queries, 4 * (os.cpu_count() or 1))

@@ -146,8 +146,12 @@ def test_an_extra_clearance_keeps_the_label_that_far_from_the_wall(
     assert edges_all_valid(wall, wide.path)
     # An end closer than that: the margin rises by half its clearance beyond the margin.
     near = start.copy()
-    while float(wall.world_clearance(near[None])[0]) > wall.margin + 0.01:
-        near[0] -= 0.01  # swing toward the wall
+    for _ in range(200):  # swing toward the wall, 1 cm of joint 0 at a time
+        if float(wall.world_clearance(near[None])[0]) <= wall.margin + 0.01:
+            break
+        near[0] -= 0.01
+    else:
+        pytest.fail("joint 0 never brought the arm within 1 cm of the margin")
     tight = oracle_path(wall, near, goal, np.random.default_rng(3), replace(QUICK, clearance=extra))
     assert tight.path is not None, tight.detail
     reach = float(wall.world_clearance(near[None])[0])
