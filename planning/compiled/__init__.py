@@ -6,6 +6,11 @@ kernels (:mod:`~planning.compiled.geometry`, :mod:`~planning.compiled.validity`)
 those. :class:`~planning.compiled.checker.CompiledChecker` is the Python face.
 """
 
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
 __all__ = [
     "checker",
     "geometry",
@@ -16,3 +21,36 @@ __all__ = [
     "validity",
     "warmup",
 ]
+
+_STAMP = "kernels.sha256"
+
+
+def drop_stale_kernels(package: Path) -> bool:
+    """Delete numba's cached kernels in ``package/__pycache__`` unless they were compiled
+    from the package's present sources; returns True when it deleted them.
+
+    Numba keys a cached kernel by its own file's timestamp only. A kernel of validity.py
+    that inlines a function of geometry.py would load its old machine code after an edit
+    of geometry.py alone: stale answers, met while measuring a change here. The stamp
+    covers every source file of the package, so any edit recompiles every kernel."""
+    digest = hashlib.sha256()
+    for source in sorted(package.glob("*.py")):
+        digest.update(source.name.encode() + b"\0" + source.read_bytes())
+    cache = package / "__pycache__"
+    stamp = cache / _STAMP
+    try:
+        if stamp.read_text() == digest.hexdigest():
+            return False
+    except OSError:
+        pass
+    try:
+        for kernel in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
+            kernel.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        stamp.write_text(digest.hexdigest())
+    except OSError:  # a read-only install: numba then caches elsewhere, or not at all
+        return False
+    return True
+
+
+drop_stale_kernels(Path(__file__).parent)

@@ -279,3 +279,32 @@ def test_the_cli_refuses_an_unsupported_joint_in_one_line(tmp_path: Path) -> Non
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and "joint 'yaw' is floating" in lines[0]
     assert not (tmp_path / "p.json").exists()
+
+
+def test_cached_kernels_are_dropped_when_any_source_of_the_package_changes(
+    tmp_path: Path,
+) -> None:
+    from planning.compiled import drop_stale_kernels
+
+    (tmp_path / "geometry.py").write_text("A = 1\n")
+    (tmp_path / "validity.py").write_text("B = 2\n")
+    cache = tmp_path / "__pycache__"
+    cache.mkdir()
+    kernel = [
+        cache / "validity.config_ok-80.py311.nbi",
+        cache / "validity.config_ok-80.py311.1.nbc",
+    ]
+    bytecode = cache / "validity.cpython-311.pyc"
+    bytecode.write_text("not numba's")
+    for f in kernel:
+        f.write_text("old machine code")
+    assert drop_stale_kernels(tmp_path)  # no stamp yet: compiled from unknown sources
+    assert not any(f.exists() for f in kernel)
+    for f in kernel:
+        f.write_text("new machine code")
+    assert not drop_stale_kernels(tmp_path)  # same sources: the cache stays
+    assert all(f.exists() for f in kernel)
+    (tmp_path / "geometry.py").write_text("A = 3\n")  # not the kernel's own module
+    assert drop_stale_kernels(tmp_path)
+    assert not any(f.exists() for f in kernel)
+    assert bytecode.exists()
