@@ -1,7 +1,8 @@
 """How a checker's robot, spheres and world travel into the compiled kernels.
 
 Everything a kernel reads is in two flat arrays, ``I`` (int64) and ``F`` (float64), plus the
-cloud's distance lattice (float32, its own array because it can be large), and everything it
+cloud's distance lattice (float32, its own array because it can be large; other worlds pass
+a float64 placeholder, and that dtype is what compiles a kernel for them), and everything it
 writes is in one scratch array ``X`` (float64). A kernel finds its data through :class:`Off`,
 a named tuple of integer offsets and sizes that :func:`offsets` reads from ``I``'s header.
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 from gaide_core.types import FloatArray, IntArray
@@ -72,6 +74,9 @@ WORLD_PRIMITIVES = 2
 PRIM_BOX = 0
 PRIM_CYLINDER = 1
 PRIM_SPHERE = 2
+
+# A cloud's distance lattice (float32), or the placeholder of the other worlds (float64).
+Field = npt.NDArray[np.float32] | npt.NDArray[np.float64]
 
 Off = namedtuple(
     "Off",

@@ -25,8 +25,7 @@ import numpy as np
 from numba import njit
 
 from gaide_core.types import FloatArray, IntArray
-from planning.compiled.geometry import Field
-from planning.compiled.layout import Off, offsets
+from planning.compiled.layout import Field, Off, offsets
 from planning.compiled.validity import config_ok, edge_ok, edge_screen
 
 RUNNING = 0

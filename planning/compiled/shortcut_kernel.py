@@ -21,8 +21,7 @@ import numpy as np
 from numba import njit
 
 from gaide_core.types import FloatArray, IntArray
-from planning.compiled.geometry import Field
-from planning.compiled.layout import Off, offsets
+from planning.compiled.layout import Field, Off, offsets
 from planning.compiled.validity import edge_ok, edge_screen
 
 

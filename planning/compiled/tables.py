@@ -14,11 +14,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 
 from gaide_core.errors import PlanningError
 from gaide_core.types import FloatArray, IntArray
 from planning.compiled import layout as L
+from planning.compiled.layout import Field
 from planning.distance_field import CloudWorld
 from planning.primitives import Box, Cylinder, PrimitiveWorld
 from planning.world import EmptyWorld, World
@@ -30,13 +30,13 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class Tables:
     """The kernels' leading arguments: ints, floats, and the cloud's lattice (float32,
-    flattened; one 0 for other worlds)."""
+    flattened; for other worlds one float64 0, whose dtype compiles the kernels for them)."""
 
     ints: IntArray
     floats: FloatArray
-    field: npt.NDArray[np.float32]
+    field: Field
 
-    def args(self) -> tuple[IntArray, FloatArray, npt.NDArray[np.float32]]:
+    def args(self) -> tuple[IntArray, FloatArray, Field]:
         return self.ints, self.floats, self.field
 
 
@@ -106,10 +106,12 @@ def _robot_slots(checker: SphereCollisionChecker) -> tuple[list[IntArray], list[
 
 def _world_slots(
     world: World,
-) -> tuple[list[IntArray], list[FloatArray], npt.NDArray[np.float32]]:
+) -> tuple[list[IntArray], list[FloatArray], Field]:
     """An empty, cloud or primitive world as slots and a lattice; PlanningError for any
     other kind."""
-    no_field = np.zeros(1, np.float32)
+    # Not a lattice: its dtype (float64, where a lattice is float32) compiles the kernels
+    # for analytic worlds (geometry.link_world_values).
+    no_field = np.zeros(1, np.float64)
     cloud = np.zeros(6)
     shape = [0, 0, 0]
     kinds: list[int] = []
