@@ -28,7 +28,6 @@ from numba import njit
 from gaide_core.types import FloatArray, IntArray
 from planning.collision import CLEARANCE_CAP, MIN_STEP_DIVISOR
 from planning.compiled.geometry import (
-    Field,
     _reach_gap,
     group_gaps,
     link_world_values,
@@ -37,7 +36,7 @@ from planning.compiled.geometry import (
     place_links_of_joint,
     place_root,
 )
-from planning.compiled.layout import Off, offsets
+from planning.compiled.layout import Field, Off, offsets
 
 
 @njit(cache=True, inline="always")
