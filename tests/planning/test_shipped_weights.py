@@ -34,9 +34,17 @@ def test_every_model_ships_small_weights_with_a_card(kind: str, robot: RobotMode
 
 # The retrained weights kept for comparison (issue 13; Tables I and II with ``--weights`` on
 # them in docs/results.md): (folder, the data set they name, its path count, model).
-RETRAINED = [("weights-train50k", "train50k", 50306, kind) for kind in MODEL_KINDS] + [
-    ("weights-train50k-tie", "train50k-tie", 50398, kind) for kind in ("gaide", "mpnet", "simpnet")
-]
+RETRAINED = (
+    [("weights-train50k", "train50k", 50306, kind) for kind in MODEL_KINDS]
+    + [
+        ("weights-train50k-tie", "train50k-tie", 50398, kind)
+        for kind in ("gaide", "mpnet", "simpnet")
+    ]
+    + [
+        ("weights-train50k-clear", "train50k-clear", 50398, kind)
+        for kind in ("gaide", "mpnet", "simpnet")
+    ]
+)
 
 
 @pytest.mark.parametrize(("folder", "data", "paths", "kind"), RETRAINED)
