@@ -90,7 +90,8 @@ Off = namedtuple(
         "place_R", "place_t", "axis", "base", "slocal", "radii", "lcentre", "lradius", "disp",
         "lower", "upper", "cloud", "pR", "pt", "pdim", "pbound", "pdisp",
         # offsets into X (scratch), and its size
-        "xR", "xt", "xc", "xlc", "xwv", "xpv", "xreach", "xpreach", "xq", "xsize",
+        "xR", "xt", "xc", "xlc", "xwv", "xpv", "xreach", "xpreach", "xgreach", "xgcapped",
+        "xq", "xsize",
     ],
 )  # fmt: skip
 
@@ -131,7 +132,8 @@ def offsets(I: IntArray) -> Off:
     J, S, L, P, G, dof = I[d], I[d + 1], I[d + 2], I[d + 3], I[d + 4], I[d + 5]
     w = _io(I, I_WORLD)
     # scratch: joint rotations, translations, sphere and link centres, two samples' world
-    # values and pair gaps, per-sphere and per-pair reach, one configuration
+    # values and pair gaps, per-sphere and per-pair reach, per-group reach, two samples'
+    # flags of the groups whose gaps are all capped, one configuration
     xR = 0
     xt = xR + 9 * J
     xc = xt + 3 * J
@@ -140,7 +142,9 @@ def offsets(I: IntArray) -> Off:
     xpv = xwv + 2 * S
     xreach = xpv + 2 * P
     xpreach = xreach + S
-    xq = xpreach + P
+    xgreach = xpreach + P
+    xgcapped = xgreach + G
+    xq = xgcapped + 2 * G
     return Off(
         J, S, L, P, G, dof, I[w], I[w + 1], I[w + 2], I[w + 3], I[w + 4],
         _io(I, I_PARENT), _io(I, I_JTYPE), _io(I, I_IDXQ), _io(I, I_SWORLD), _io(I, I_LSPH),
@@ -150,5 +154,5 @@ def offsets(I: IntArray) -> Off:
         _fo(I, F_RADII), _fo(I, F_LCENTRE), _fo(I, F_LRADIUS), _fo(I, F_DISP), _fo(I, F_LOWER),
         _fo(I, F_UPPER), _fo(I, F_CLOUD), _fo(I, F_PR), _fo(I, F_PT), _fo(I, F_PDIM),
         _fo(I, F_PBOUND), _fo(I, F_PDISP),
-        xR, xt, xc, xlc, xwv, xpv, xreach, xpreach, xq, xq + dof,
+        xR, xt, xc, xlc, xwv, xpv, xreach, xpreach, xgreach, xgcapped, xq, xq + dof,
     )  # fmt: skip

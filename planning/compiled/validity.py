@@ -97,7 +97,8 @@ def config_ok(
 def sample_values(
     I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, margin: float, row: int
 ) -> bool:
-    """Capped clearances (S,) at ``X[o.xwv + row S]`` and gaps (P,) at ``X[o.xpv + row P]``
+    """Capped clearances (S,) at ``X[o.xwv + row S]``, gaps (P,) at ``X[o.xpv + row P]``
+    and 1 at ``X[o.xgcapped + row G + g]`` where every gap of pair group g is the cap
     for the configuration in ``X[o.xq:]``; False as soon as it is found invalid (outside the
     limits, a clearance below the margin, an overlap)."""
     if not within_limits(F, X, o):
@@ -108,19 +109,22 @@ def sample_values(
         if link_world_values(I, F, field, X, o, lk, CLEARANCE_CAP, wv) < margin:
             return False
     for g in range(o.G):
-        if group_gaps(I, F, X, o, g, CLEARANCE_CAP, pv) < 0.0:
+        low = group_gaps(I, F, X, o, g, CLEARANCE_CAP, pv)
+        if low < 0.0:
             return False
+        X[o.xgcapped + row * o.G + g] = 1.0 if low >= CLEARANCE_CAP else 0.0
     return True
 
 
 @njit(cache=True, inline="always")
 def edge_steps(
-    F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray, resolution: float
-) -> int:
+    I: IntArray, F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray,
+    resolution: float,
+) -> int:  # fmt: skip
     """Sub-steps of the edge q0 -> q1 so that no sphere centre moves more than
     ``resolution`` (m) between samples. Over the whole edge, ``X[o.xreach + s]`` receives
     sphere s's bound (m) on its motion, ``X[o.xpreach + p]`` pair p's on the change of its
-    centre distance."""
+    centre distance, ``X[o.xgreach + g]`` the largest of pair group g's."""
     top = 0.0
     for s in range(o.S):
         acc = 0.0
@@ -128,11 +132,15 @@ def edge_steps(
             acc += abs(q1[j] - q0[j]) * F[o.disp + s * o.dof + j]
         X[o.xreach + s] = acc
         top = max(top, acc)
-    for p in range(o.P):
-        acc = 0.0
-        for j in range(o.dof):
-            acc += abs(q1[j] - q0[j]) * F[o.pdisp + p * o.dof + j]
-        X[o.xpreach + p] = acc
+    for g in range(o.G):
+        group_top = 0.0
+        for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
+            acc = 0.0
+            for j in range(o.dof):
+                acc += abs(q1[j] - q0[j]) * F[o.pdisp + p * o.dof + j]
+            X[o.xpreach + p] = acc
+            group_top = max(group_top, acc)
+        X[o.xgreach + g] = group_top
     return max(math.ceil(top / resolution), 1)
 
 
@@ -153,10 +161,16 @@ def _safe_fraction(I: IntArray, X: FloatArray, o: Off, row: int, margin: float) 
         r = X[o.xreach + s]
         if I[o.sworld + s] and r > 0.0:
             f = min(f, (X[wv + s] - margin) / r)
-    for p in range(o.P):
-        rr = X[o.xpreach + p]
-        if rr > 0.0:
-            f = min(f, X[pv + p] / rr)
+    for g in range(o.G):
+        if X[o.xgcapped + row * o.G + g]:  # the group's pairs all at the cap: its top reach
+            rr = X[o.xgreach + g]  # gives their minimum, exactly (rounding is monotonic)
+            if rr > 0.0:
+                f = min(f, CLEARANCE_CAP / rr)
+            continue
+        for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
+            rr = X[o.xpreach + p]
+            if rr > 0.0:
+                f = min(f, X[pv + p] / rr)
     return f
 
 
@@ -168,9 +182,14 @@ def _pair_bound_holds(I: IntArray, X: FloatArray, o: Off, margin: float, dt: flo
         bound = 2.0 * margin + X[o.xreach + s] * dt
         if I[o.sworld + s] and X[o.xwv + s] + X[o.xwv + o.S + s] < bound:
             return False
-    for p in range(o.P):
-        if X[o.xpv + p] + X[o.xpv + o.P + p] < X[o.xpreach + p] * dt:
-            return False
+    for g in range(o.G):
+        if X[o.xgcapped + g] and X[o.xgcapped + o.G + g]:  # as in _safe_fraction
+            if X[o.xgreach + g] * dt > CLEARANCE_CAP + CLEARANCE_CAP:
+                return False
+            continue
+        for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
+            if X[o.xpv + p] + X[o.xpv + o.P + p] < X[o.xpreach + p] * dt:
+                return False
     return True
 
 
@@ -187,7 +206,7 @@ def edge_ok(
     resolution: float,
 ) -> bool:
     """Is the straight edge q0 -> q1 (dof,) certified (module docstring)?"""
-    n = edge_steps(F, X, o, q0, q1, resolution)
+    n = edge_steps(I, F, X, o, q0, q1, resolution)
     step = 1.0 / n
     smallest = step / MIN_STEP_DIVISOR
     t, cur = 0.0, 0
@@ -306,7 +325,7 @@ def edge_step_counts(I, F, Q0, Q1, resolution, out):  # type: ignore[no-untyped-
     o = offsets(I)
     X = np.empty(o.xsize)
     for e in range(Q0.shape[0]):
-        out[e] = edge_steps(F, X, o, Q0[e], Q1[e], resolution)
+        out[e] = edge_steps(I, F, X, o, Q0[e], Q1[e], resolution)
 
 
 @njit(cache=True)
