@@ -42,7 +42,7 @@ I_JLSTART = 8  # (J + 1,) joint j carries links JLSTART[j]:JLSTART[j + 1]
 I_PAIRS = 9  # (P, 2) self-collision sphere pairs (i, j), grouped by link pair
 I_GLINKS = 10  # (G, 2) the two links of each group
 I_GSTART = 11  # (G + 1,) group g owns pairs GSTART[g]:GSTART[g + 1]
-I_WORLD = 12  # [kind, nx, ny, nz (cloud lattice), M primitives]
+I_WORLD = 12  # [nx, ny, nz (cloud lattice), M primitives]; the kind is the lattice's dtype
 I_PTYPE = 13  # (M,) PRIM_* below
 N_I = 14
 # -- float slots ----------------------------------------------------------------------------
@@ -68,9 +68,6 @@ N_F = 17
 JOINT_ROOT = 0
 JOINT_REVOLUTE = 1
 JOINT_PRISMATIC = 2
-WORLD_EMPTY = 0
-WORLD_CLOUD = 1
-WORLD_PRIMITIVES = 2
 PRIM_BOX = 0
 PRIM_CYLINDER = 1
 PRIM_SPHERE = 2
@@ -82,7 +79,7 @@ Off = namedtuple(
     "Off",
     [
         # sizes
-        "J", "S", "L", "P", "G", "dof", "kind", "nx", "ny", "nz", "M",
+        "J", "S", "L", "P", "G", "dof", "nx", "ny", "nz", "M",
         # offsets into I
         "parent", "jtype", "idxq", "sworld", "lsph", "lstart", "lworld", "jlstart", "pairs",
         "glinks", "gstart", "ptype",
@@ -146,7 +143,7 @@ def offsets(I: IntArray) -> Off:
     xgcapped = xgreach + G
     xq = xgcapped + 2 * G
     return Off(
-        J, S, L, P, G, dof, I[w], I[w + 1], I[w + 2], I[w + 3], I[w + 4],
+        J, S, L, P, G, dof, I[w], I[w + 1], I[w + 2], I[w + 3],
         _io(I, I_PARENT), _io(I, I_JTYPE), _io(I, I_IDXQ), _io(I, I_SWORLD), _io(I, I_LSPH),
         _io(I, I_LSTART), _io(I, I_LWORLD), _io(I, I_JLSTART), _io(I, I_PAIRS),
         _io(I, I_GLINKS), _io(I, I_GSTART), _io(I, I_PTYPE),

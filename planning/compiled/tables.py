@@ -117,14 +117,13 @@ def _world_slots(
     kinds: list[int] = []
     pR, pt, pdim, pbound = [], [], [], []
     if isinstance(world, EmptyWorld):
-        kind, field = L.WORLD_EMPTY, no_field
+        field = no_field
     elif isinstance(world, CloudWorld):
-        kind = L.WORLD_CLOUD
         field = np.ascontiguousarray(world.field.ravel(), np.float32)
         cloud = np.array([*world._origin_scaled, world.voxel, world.band, world._inv_voxel])
         shape = list(world.shape)
     elif isinstance(world, PrimitiveWorld):
-        kind, field = L.WORLD_PRIMITIVES, no_field
+        field = no_field
         for p in world.primitives:
             if isinstance(p, Box):
                 half = np.asarray(p.size, float) / 2
@@ -151,7 +150,7 @@ def _world_slots(
             f"{type(world).__name__}; use the numpy checker (--checker numpy)"
         )
     M = len(kinds)
-    ints = [np.array([kind, *shape, M], np.int64), np.array(kinds, np.int64)]
+    ints = [np.array([*shape, M], np.int64), np.array(kinds, np.int64)]
     floats = [
         cloud,
         np.asarray(pR, float).reshape(M, 3, 3),
