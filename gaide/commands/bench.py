@@ -78,7 +78,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         ("--shortcuts", int, "shortcut attempts per refined run"),
         ("--tie", float, "label the refined run within this share of the shortest that leaves "
          "the start most nearly toward the goal"),
-        ("--clearance", float, "extra clearance (m) the label keeps where the ends allow"),
+        ("--clearance", float, "extra clearance (m, up to 0.05) the label keeps, at most half the ends' own beyond the margin"),
     ):  # fmt: skip
         ora.add_argument(flag, type=kind, help=f"{what} (default: the data's oracle)")
     ora.add_argument("--robot", help="robot config YAML (default: UR5)")

@@ -52,7 +52,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     gen.add_argument(
         "--oracle-clearance",
         type=float,
-        help="extra clearance (m) the labels keep where the start and goal allow (0: none)",
+        help="extra clearance (m, up to 0.05) the labels keep: at most half of how far the "
+        "start's and goal's tightest sphere clears the margin (0: none)",
     )
     # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
     # the same labels under load). The old flags are still accepted and say so.
