@@ -103,6 +103,8 @@ class CollisionChecker(Protocol):
     margin: float  # m
     resolution: float  # m
     radii: Array  # (S,) m, the spheres' radii in the sphere model's order
+    # (S,) m, the radii the world checks take: radii plus each sphere's world raise
+    world_radii: Array
     backend: str  # "compiled" or "numpy"
 
     def config_valid(self, Q: Array) -> Mask:
@@ -135,6 +137,10 @@ class CollisionChecker(Protocol):
 
     def world_clearance(self, Q: Array, links: tuple[str, ...] | None = None) -> Array: ...
 
+    def sphere_clearance(self, Q: Array) -> Array:
+        """(B, S) distance - radius (m) of each world-checked sphere, +inf for the others."""
+        ...
+
     def sphere_centers(self, Q: Array) -> Array: ...
 
     @property
@@ -144,6 +150,12 @@ class CollisionChecker(Protocol):
 
     def with_margin(self, margin: float) -> CollisionChecker:
         """This checker at another margin (m); PlanningError outside [0, max_margin]."""
+        ...
+
+    def with_world_raise(self, raise_: Array) -> CollisionChecker:
+        """This checker with sphere s kept ``raise_[s]`` m (S,) further from the world than
+        the margin; PlanningError for a negative or non-finite raise, or one the world's
+        distances are not exact for."""
         ...
 
 
@@ -179,6 +191,8 @@ class SphereCollisionChecker:
         self.world: World = world if world is not None else EmptyWorld()
         self.margin = robot.config.collision_margin if margin is None else float(margin)
         self.resolution = robot.config.edge_resolution if resolution is None else float(resolution)
+        self.radii = spheres.radii.astype(float)
+        self.world_radii = self.radii
         self._check_margin()
         self.kin = BatchKinematics(robot)
         link_of = [robot.links[name] for name in spheres.links]
@@ -190,7 +204,6 @@ class SphereCollisionChecker:
                 for lk, c in zip(link_of, spheres.centers, strict=True)
             ]
         )
-        self.radii = spheres.radii.astype(float)
         ignored = (
             robot.config.world_ignored_links if world_ignored_links is None else world_ignored_links
         )
@@ -218,22 +231,40 @@ class SphereCollisionChecker:
             )
         if self.margin > self.max_margin:
             exact = getattr(self.world, "exact_up_to", np.inf)
-            reach = self.spheres.radii.max() + self.margin
+            reach = self.world_radii.max() + self.margin
             raise PlanningError(
                 f"the world's distances are exact only up to {exact:.3f} m, less than the "
-                f"largest sphere radius + margin ({reach:.3f} m): build it with a wider band"
+                f"largest sphere radius (with its world raise) + margin ({reach:.3f} m): build "
+                "it with a wider band, or ask for less"
             )
 
     @property
     def max_margin(self) -> float:
-        """The largest margin (m) the world's distances are exact for (inf: any)."""
-        return float(getattr(self.world, "exact_up_to", np.inf) - self.spheres.radii.max())
+        """The largest margin (m) the world's distances are exact for (inf: any), given the
+        world checks' radii."""
+        return float(getattr(self.world, "exact_up_to", np.inf) - self.world_radii.max())
 
     def with_margin(self, margin: float) -> SphereCollisionChecker:
         """This checker at another margin (m), sharing everything else (the kernels take the
         margin per call); PlanningError for one outside [0, max_margin]."""
         other = copy.copy(self)
         other.margin = float(margin)
+        other._check_margin()
+        return other
+
+    def with_world_raise(self, raise_: Array) -> SphereCollisionChecker:
+        """This checker with sphere s kept ``raise_[s]`` m (S,) further from the world than
+        the margin (its world checks take radius + raise; self pairs keep the radii), sharing
+        everything else; PlanningError for a raise of another shape, negative or not finite,
+        or one the world's distances are not exact for."""
+        raise_ = np.asarray(raise_, float)
+        if raise_.shape != self.radii.shape or not np.all(np.isfinite(raise_) & (raise_ >= 0)):
+            raise PlanningError(
+                f"a world raise needs one finite value >= 0 (m) per sphere, shape "
+                f"{self.radii.shape}; got shape {raise_.shape}"
+            )
+        other = copy.copy(self)
+        other.world_radii = self.radii + raise_
         other._check_margin()
         return other
 
@@ -269,6 +300,15 @@ class SphereCollisionChecker:
         """(B, S, 3) world positions of the sphere centres for configurations Q (B, dof)."""
         return self.kin.points(Q, self.sphere_joint, self.sphere_local)
 
+    def sphere_clearance(self, Q: Array) -> Array:
+        """(B, S) distance - radius (m) of each world-checked sphere, +inf for the others."""
+        ws = self.world_spheres
+        centers = self.sphere_centers(Q)[:, ws]
+        B, S, _ = centers.shape
+        out = np.full((B, len(self.radii)), np.inf)
+        out[:, ws] = self.world.distance(centers.reshape(-1, 3)).reshape(B, S) - self.radii[ws]
+        return out
+
     def world_clearance(self, Q: Array, links: tuple[str, ...] | None = None) -> Array:
         """(B,) smallest (distance - radius) over the world-checked spheres (m), or over the
         spheres of ``links`` only."""
@@ -297,7 +337,7 @@ class SphereCollisionChecker:
         points = self.kin.points(Q, self.point_joint, self.point_local)
         B = Q.shape[0]
         w = points[:, self.world_spheres].reshape(-1, 3)
-        d = self.world.distance(w).reshape(B, -1) - self.radii[self.world_spheres]
+        d = self.world.distance(w).reshape(B, -1) - self.world_radii[self.world_spheres]
         ok &= np.all(d >= self.margin, axis=1)
         for a, b, ks, reach in self._link_groups:
             gap = points[:, a] - points[:, b]
@@ -314,7 +354,7 @@ class SphereCollisionChecker:
         if np.any(q < self.robot.lower) or np.any(q > self.robot.upper):
             return False
         centers = self.kin.points_one(q, self.sphere_joint, self.sphere_local)
-        d = self.world.distance(centers[self.world_spheres]) - self.radii[self.world_spheres]
+        d = self.world.distance(centers[self.world_spheres]) - self.world_radii[self.world_spheres]
         if d.min() < self.margin:
             return False
         if len(self.pairs):
@@ -347,7 +387,7 @@ class SphereCollisionChecker:
             names[i] for i in np.flatnonzero((q < self.robot.lower) | (q > self.robot.upper))
         ]
         centers = self.sphere_centers(q[None])[0]
-        d = self.world.distance(centers[self.world_spheres]) - self.radii[self.world_spheres]
+        d = self.world.distance(centers[self.world_spheres]) - self.world_radii[self.world_spheres]
         hit = self.world_spheres[d < self.margin]
         world_links = list(dict.fromkeys(self.spheres.links[i] for i in hit))
         self_pairs: list[tuple[str, str]] = []
@@ -483,7 +523,7 @@ class SphereCollisionChecker:
         centres = self.sphere_centers(q[None])[0]
         v = np.full(len(self.radii), CLEARANCE_CAP)
         ws = self.world_spheres
-        v[ws] = np.minimum(self.world.distance(centres[ws]) - self.radii[ws], CLEARANCE_CAP)
+        v[ws] = np.minimum(self.world.distance(centres[ws]) - self.world_radii[ws], CLEARANCE_CAP)
         if np.any(v < self.margin):
             return None
         i, j = self.pairs[:, 0], self.pairs[:, 1]

@@ -28,6 +28,11 @@ from planning.rrtc import CompiledRRTConnect, RRTCCfg, shorten
 log = logging.getLogger(__name__)
 
 
+#: How the extra clearance is limited at the ends: each sphere by its own clearance there
+#: ("sphere"), or every sphere by the tightest one's ("tightest", the rule of the data sets
+#: made before the first; docs/results.md, "Retraining on the clearance set").
+CLEARANCE_RULES = ("sphere", "tightest")
+
 #: The largest extra clearance (m) a label may ask for (a cloud world's lattice limits it
 #: further: see ``CollisionChecker.max_margin``).
 MAX_CLEARANCE = 0.05
@@ -51,12 +56,16 @@ class OracleCfg:
     # Two oracle runs often end around opposite sides of a board at costs 2-4% apart; a
     # shared preference makes them choose alike (docs/results.md, "The oracle").
     tie: float = 0.0
-    # Extra clearance (m) the label keeps where it can: the search and the shortcuts run with
-    # the margin raised by up to this much, and by no more than half the start's and the
-    # goal's own clearance beyond it; a problem left unsolved so is solved at the plain
-    # margin. Labels shortcut hard against the obstacles teach a network to step into them
-    # (docs/results.md, "Retraining on the tie-share set").
+    # Extra clearance (m) the label keeps where it can: the search and the shortcuts keep each
+    # sphere up to this much further from the world than the margin, and by no more than
+    # half that sphere's own clearance beyond the margin at the start and at the goal; a
+    # problem left unsolved so is solved at the plain margin. Labels shortcut hard against
+    # the obstacles teach a network to step into them (docs/results.md, "Retraining on the
+    # tie-share set"). Per sphere, because a sphere that stays near an obstacle all along
+    # (the UR5's shoulder by the table) must not hold down the others' raise
+    # (``clearance_rule``, CLEARANCE_RULES above).
     clearance: float = 0.0
+    clearance_rule: str = "sphere"
 
     def __post_init__(self) -> None:
         if self.runs < 1 or self.iterations < 1 or self.shortcuts < 0 or self.refine < 1:
@@ -70,6 +79,11 @@ class OracleCfg:
             raise PlanningError(
                 f"the oracle's extra clearance must be in [0, {MAX_CLEARANCE}] m; got "
                 f"{self.clearance}"
+            )
+        if self.clearance_rule not in CLEARANCE_RULES:
+            raise PlanningError(
+                f"unknown clearance rule '{self.clearance_rule}'; valid: "
+                f"{', '.join(CLEARANCE_RULES)}"
             )
         if self.rescue_iterations < 0 or not (0 < self.max_step <= 1.0):
             raise PlanningError(
@@ -91,13 +105,15 @@ def oracle_path(
     (with ``cfg.tie``, the refined one within that share of the shortest whose first step
     points most nearly at the goal), resampled so that no step exceeds ``cfg.max_step`` rad
     (resampling keeps the curve, so the label's edges lie on certified edges). With
-    ``cfg.clearance``, all of it runs at a margin raised as far as the ends allow, and again
-    at the checker's own margin if that found no path.
+    ``cfg.clearance``, all of it runs with each sphere's margin raised as far as the ends
+    allow, and again at the checker's own margin if that found no path.
 
     Returns a :class:`PlanResult` named ``oracle``: SUCCESS with the path (K, dof), start
     and goal exact; START_INVALID / GOAL_INVALID; FAILED when no run (nor the rescue run of
     ``cfg.rescue_iterations``) found a path. ``stats`` hold every run's outcome and cost
-    (rad), the winner, the cost before resampling, and the margin (m) the label keeps.
+    (rad), the winner, the cost before resampling, the margin (m) and the largest and
+    smallest raise of a world-checked sphere (m, ``raise_max``, ``raise_min``) the label
+    keeps.
     """
     t0 = time.perf_counter()
     cfg = cfg or OracleCfg()
@@ -107,13 +123,16 @@ def oracle_path(
     runs: list[tuple[str, str, int]] = []  # (run, status, iterations)
     candidates: list[tuple[str, Array]] = []
     kept = checker
-    wide = _with_clearance(checker, start, goal, cfg.clearance)
-    if wide is not None:
+    raised = np.zeros(0)  # the world-checked spheres' raise (m) the label keeps
+    widened = _with_clearance(checker, start, goal, cfg.clearance, cfg.clearance_rule)
+    if widened is not None:
+        wide, raised = widened
         candidates = _candidates(wide, start, goal, rng, cfg, runs)
         kept = wide
     if not candidates:
         candidates = _candidates(checker, start, goal, rng, cfg, runs)
         kept = checker
+        raised = np.zeros(0)
     # Shortcuts are most of the oracle's work: only the shortest runs (after the cheap vertex
     # reduction) get them.
     candidates.sort(key=lambda c: path_length(c[1]))
@@ -124,6 +143,8 @@ def oracle_path(
         "candidates": [(src, path_length(p)) for src, p in candidates],
         "runs": runs,
         "margin": kept.margin,
+        "raise_max": float(raised.max()) if raised.size else 0.0,
+        "raise_min": float(raised.min()) if raised.size else 0.0,
     }
     if not candidates:
         return PlanResult(
@@ -149,17 +170,33 @@ def oracle_path(
 
 
 def _with_clearance(
-    checker: CollisionChecker, start: Array, goal: Array, extra: float
-) -> CollisionChecker | None:
-    """``checker`` with its margin raised by up to ``extra`` m: by at most half the start's
-    and the goal's clearance beyond the margin (an edge cannot leave an end that sits on its
-    margin), and no higher than the world's distances are exact for; None when it cannot be
-    raised."""
+    checker: CollisionChecker, start: Array, goal: Array, extra: float, rule: str
+) -> tuple[CollisionChecker, Array] | None:
+    """``checker`` with each world-checked sphere kept up to ``extra`` m further from the
+    world: by at most half that sphere's clearance beyond the margin at the start and at the
+    goal (an edge cannot leave an end where the sphere sits on its margin), and no further
+    than the world's distances are exact for; with the world-checked spheres' raises (m).
+    None when no sphere can be raised. Rule "tightest": every sphere as far as the tightest
+    sphere at the ends allows, as the margin itself (the data sets made before the rule)."""
     if extra <= 0:
         return None
-    ends = float(checker.world_clearance(np.stack([start, goal])).min())
-    raised = min(checker.margin + min(extra, 0.5 * (ends - checker.margin)), checker.max_margin)
-    return checker.with_margin(raised) if raised > checker.margin else None
+    if rule == "tightest":
+        ends_min = float(checker.world_clearance(np.stack([start, goal])).min())
+        margin = min(
+            checker.margin + min(extra, 0.5 * (ends_min - checker.margin)), checker.max_margin
+        )
+        if margin <= checker.margin:
+            return None
+        return checker.with_margin(margin), np.array([margin - checker.margin])
+    ends = checker.sphere_clearance(np.stack([start, goal])).min(axis=0)  # (S,), inf: ignored
+    exact = checker.max_margin + float(checker.world_radii.max())
+    room = exact - checker.margin - checker.radii
+    raise_ = np.minimum(np.minimum(extra, 0.5 * (ends - checker.margin)), room)
+    checked = np.isfinite(ends)
+    raise_ = np.where(checked, np.maximum(raise_, 0.0), 0.0)
+    if not np.any(raise_ > 0):
+        return None
+    return checker.with_world_raise(raise_), raise_[checked]
 
 
 def _candidates(

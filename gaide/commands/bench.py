@@ -78,9 +78,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         ("--shortcuts", int, "shortcut attempts per refined run"),
         ("--tie", float, "label the refined run within this share of the shortest that leaves "
          "the start most nearly toward the goal"),
-        ("--clearance", float, "extra clearance (m, up to 0.05) the label keeps, at most half the ends' own beyond the margin"),
+        ("--clearance", float, "extra clearance (m, up to 0.05) each sphere of the label keeps, at most half its own at the ends beyond the margin"),
     ):  # fmt: skip
         ora.add_argument(flag, type=kind, help=f"{what} (default: the data's oracle)")
+    ora.add_argument(
+        "--clearance-rule",
+        choices=["sphere", "tightest"],
+        help="limit each sphere's extra clearance by its own at the ends, or all by the "
+        "tightest sphere's (default: the data's oracle)",
+    )
     ora.add_argument("--robot", help="robot config YAML (default: UR5)")
     ora.add_argument("--json", help="write the figures to this JSON file")
     ora.set_defaults(func=cmd_oracle)
@@ -263,7 +269,8 @@ def cmd_oracle(args: argparse.Namespace) -> int:
     from planning.oracle import OracleCfg, oracle_consistency, oracle_quality
 
     robot, spheres = robot_and_spheres(args.robot)
-    chosen = {k: getattr(args, k) for k in ("runs", "refine", "shortcuts", "tie", "clearance")}
+    keys = ("runs", "refine", "shortcuts", "tie", "clearance", "clearance_rule")
+    chosen = {k: getattr(args, k) for k in keys}
     cfg = OracleCfg(**{k: v for k, v in chosen.items() if v is not None})
     rows, runs = [], []
     families: dict[str, dict[str, float | None]] = {}

@@ -52,8 +52,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     gen.add_argument(
         "--oracle-clearance",
         type=float,
-        help="extra clearance (m, up to 0.05) the labels keep: at most half of how far the "
-        "start's and goal's tightest sphere clears the margin (0: none)",
+        help="extra clearance (m, up to 0.05) each sphere of the labels keeps: at most half "
+        "of how far that sphere clears the margin at the start and the goal (0: none)",
+    )
+    gen.add_argument(
+        "--oracle-clearance-rule",
+        choices=["sphere", "tightest"],
+        help="limit each sphere's extra clearance by its own at the ends (sphere, the "
+        "default) or all by the tightest sphere's (tightest: sets made before the rule)",
     )
     # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
     # the same labels under load). The old flags are still accepted and say so.
@@ -139,6 +145,7 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
                     ("shortcuts", args.oracle_shortcuts),
                     ("tie", args.oracle_tie),
                     ("clearance", args.oracle_clearance),
+                    ("clearance_rule", args.oracle_clearance_rule),
                 )
                 if value is not None
             }

@@ -31,8 +31,16 @@ class CompiledChecker(SphereCollisionChecker):
         self._tables = self.tables.args()
 
     def kernel_tables(self) -> Tables:
-        """The tables exported once, at construction."""
+        """The tables exported once, at construction (and again for a world raise)."""
         return self.tables
+
+    def with_world_raise(self, raise_: Array) -> CompiledChecker:
+        other = super().with_world_raise(raise_)
+        assert isinstance(other, CompiledChecker)
+        # The raised radii are tables of their own; the lattice is shared, not copied.
+        other.tables = checker_tables(other)
+        other._tables = other.tables.args()
+        return other
 
     def config_valid(self, Q: Array) -> Mask:
         Q = self._batch(Q)

@@ -213,22 +213,22 @@ def link_world_values(
             s = I[o.lsph + i]
             if I[o.sworld + s]:
                 c = o.xc + 3 * s
-                v = cloud_distance(F, field, o, X[c], X[c + 1], X[c + 2]) - F[o.radii + s]
+                v = cloud_distance(F, field, o, X[c], X[c + 1], X[c + 2]) - F[o.wradii + s]
                 v = min(v, cap)
                 X[out + s] = v
                 low = min(low, v)
         return low
     for m in range(o.M):  # the primitives (none in an empty world)
-        if _apart(X, o.xlc + 3 * lk, F, o.pt + 3 * m) - F[o.pbound + m] - F[o.lradius + lk] >= cap:
+        if _apart(X, o.xlc + 3 * lk, F, o.pt + 3 * m) - F[o.pbound + m] - F[o.lwradius + lk] >= cap:
             continue
         for i in range(lo, hi):
             s = I[o.lsph + i]
             if not I[o.sworld + s]:
                 continue
             c = o.xc + 3 * s
-            if _apart(X, c, F, o.pt + 3 * m) - F[o.pbound + m] - F[o.radii + s] >= cap:
+            if _apart(X, c, F, o.pt + 3 * m) - F[o.pbound + m] - F[o.wradii + s] >= cap:
                 continue
-            v = primitive_distance(I, F, o, m, X[c], X[c + 1], X[c + 2]) - F[o.radii + s]
+            v = primitive_distance(I, F, o, m, X[c], X[c + 1], X[c + 2]) - F[o.wradii + s]
             if v < X[out + s]:
                 X[out + s] = v
                 low = min(low, v)

@@ -63,7 +63,11 @@ F_PT = 13  # (M, 3) their translations
 F_PDIM = 14  # (M, 3) box: half sizes; cylinder: radius, half height, 0; sphere: radius, 0, 0
 F_PBOUND = 15  # (M,) radius of a sphere about the primitive's origin that contains it
 F_PDISP = 16  # (P, dof) bound on the change of pair p's centre distance per rad of each joint
-N_F = 17
+# The world checks' radii: each sphere's radius plus its world raise (an extra clearance the
+# oracle asks of that sphere alone; 0 otherwise), and the links' bounding radii over them.
+F_WRADII = 17  # (S,) m
+F_LWRADIUS = 18  # (L,) m
+N_F = 19
 
 JOINT_ROOT = 0
 JOINT_REVOLUTE = 1
@@ -85,7 +89,7 @@ Off = namedtuple(
         "glinks", "gstart", "ptype",
         # offsets into F
         "place_R", "place_t", "axis", "base", "slocal", "radii", "lcentre", "lradius", "disp",
-        "lower", "upper", "cloud", "pR", "pt", "pdim", "pbound", "pdisp",
+        "lower", "upper", "cloud", "pR", "pt", "pdim", "pbound", "pdisp", "wradii", "lwradius",
         # offsets into X (scratch), and its size
         "xR", "xt", "xc", "xlc", "xwv", "xpv", "xreach", "xpreach", "xgreach", "xgcapped",
         "xq", "xsize",
@@ -150,6 +154,6 @@ def offsets(I: IntArray) -> Off:
         _fo(I, F_PLACE_R), _fo(I, F_PLACE_T), _fo(I, F_AXIS), _fo(I, F_BASE), _fo(I, F_SLOCAL),
         _fo(I, F_RADII), _fo(I, F_LCENTRE), _fo(I, F_LRADIUS), _fo(I, F_DISP), _fo(I, F_LOWER),
         _fo(I, F_UPPER), _fo(I, F_CLOUD), _fo(I, F_PR), _fo(I, F_PT), _fo(I, F_PDIM),
-        _fo(I, F_PBOUND), _fo(I, F_PDISP),
+        _fo(I, F_PBOUND), _fo(I, F_PDISP), _fo(I, F_WRADII), _fo(I, F_LWRADIUS),
         xR, xt, xc, xlc, xwv, xpv, xreach, xpreach, xgreach, xgcapped, xq, xq + dof,
     )  # fmt: skip

@@ -42,15 +42,19 @@ class Tables:
 
 def checker_tables(checker: SphereCollisionChecker) -> Tables:
     """Robot, spheres and world of the numpy reference ``checker`` as packed tables."""
-    ri, rf = _robot_slots(checker)
+    ri, rf, lwradius = _robot_slots(checker)
     wi, wf, field = _world_slots(checker.world)
     pairs = ri[L.I_PAIRS].reshape(-1, 2)
-    ints, floats = L.pack(ri + wi, rf + wf + [checker.pair_displacement(pairs)])
+    extra = [checker.pair_displacement(pairs), checker.world_radii, lwradius]
+    ints, floats = L.pack(ri + wi, rf + wf + extra)
     return Tables(ints, floats, field)
 
 
-def _robot_slots(checker: SphereCollisionChecker) -> tuple[list[IntArray], list[FloatArray]]:
-    """The robot and its spheres as the numpy reference ``checker`` models them."""
+def _robot_slots(
+    checker: SphereCollisionChecker,
+) -> tuple[list[IntArray], list[FloatArray], FloatArray]:
+    """The robot and its spheres as the numpy reference ``checker`` models them, and the
+    links' bounding radii over the world checks' radii (``F_LWRADIUS``)."""
     kin = checker.kin
     J = kin.njoints
     jtype = np.full(J, L.JOINT_ROOT, np.int64)
@@ -71,6 +75,7 @@ def _robot_slots(checker: SphereCollisionChecker) -> tuple[list[IntArray], list[
     jlstart = np.searchsorted(ljoint, np.arange(J + 1)).astype(np.int64)
     lcentre = np.empty((len(link_names), 3))
     lradius = np.empty(len(link_names))
+    lwradius = np.empty(len(link_names))
     sworld = np.zeros(len(names), np.int64)
     sworld[checker.world_spheres] = 1
     lworld = np.zeros(len(link_names), np.int64)
@@ -78,9 +83,9 @@ def _robot_slots(checker: SphereCollisionChecker) -> tuple[list[IntArray], list[
         idx = order[lstart[lk] : lstart[lk + 1]]
         centre = checker.sphere_local[idx].mean(axis=0)
         lcentre[lk] = centre
-        lradius[lk] = float(
-            (np.linalg.norm(checker.sphere_local[idx] - centre, axis=1) + checker.radii[idx]).max()
-        )
+        offset = np.linalg.norm(checker.sphere_local[idx] - centre, axis=1)
+        lradius[lk] = float((offset + checker.radii[idx]).max())
+        lwradius[lk] = float((offset + checker.world_radii[idx]).max())
         lworld[lk] = int(sworld[idx].any())
 
     groups: dict[tuple[int, int], list[tuple[int, int]]] = {}
@@ -101,7 +106,7 @@ def _robot_slots(checker: SphereCollisionChecker) -> tuple[list[IntArray], list[
         checker.sphere_local, checker.radii, lcentre, lradius, checker._displacement,
         robot.lower, robot.upper,
     ]  # fmt: skip
-    return ints, floats
+    return ints, floats, lwradius
 
 
 def _world_slots(

@@ -153,6 +153,49 @@ def test_a_certified_edge_keeps_the_margin_at_every_point(
 
 
 @pytest.mark.parametrize("kind", ["primitives", "cloud"])
+def test_a_world_raise_agrees_exactly_and_keeps_each_sphere_its_own_clearance(
+    kind: str, worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
+) -> None:
+    # The oracle keeps each sphere its own extra clearance from the world (self pairs keep
+    # the radii): both backends agree on it exactly, a configuration is valid under it when
+    # it is valid and every sphere clears the margin by its raise, and a certified edge keeps
+    # each sphere's raised margin at every point.
+    world = worlds[kind]
+    rng = np.random.default_rng(6)
+    plain = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
+    # No raise for the spheres that stay by the table in every pose (as the oracle does).
+    farthest = plain.sphere_clearance(robot.sample_uniform(rng, 500)).max(axis=0)
+    raise_ = np.where(farthest > 0.04, rng.uniform(0.0, 0.03, len(spheres.radii)), 0.0)
+    assert np.count_nonzero(raise_) >= len(raise_) // 2
+    ref = plain.with_world_raise(raise_)
+    fast = CompiledChecker(robot, spheres, world).with_world_raise(raise_)  # type: ignore[arg-type]
+    Q = np.concatenate([robot.sample_uniform(rng, 2000), _near(plain, rng, 3000)])
+    expected = ref.config_valid(Q)
+    np.testing.assert_array_equal(fast.config_valid(Q), expected)
+    kept = (plain.sphere_clearance(Q) - raise_ >= plain.margin).all(axis=1)
+    np.testing.assert_array_equal(expected, plain.config_valid(Q) & kept)
+    assert 0.05 < expected.mean() < 0.95 and np.any(plain.config_valid(Q) & ~kept)
+    starts = Q[expected][:150]
+    ends = np.clip(starts + rng.normal(size=starts.shape) * 0.3, robot.lower, robot.upper)
+    ok = ref.edges_valid(starts, ends)
+    np.testing.assert_array_equal(fast.edges_valid(starts, ends), ok)
+    assert ok.sum() >= 30
+    dense = np.concatenate(
+        [
+            a + np.linspace(0, 1, 400)[:, None] * (b - a)
+            for a, b in zip(starts[ok], ends[ok], strict=True)
+        ]
+    )
+    if kind == "primitives":  # exact distances (a cloud's lattice is exact at its voxels)
+        assert (plain.sphere_clearance(dense) - raise_).min() >= plain.margin
+    with pytest.raises(PlanningError, match="one finite value >= 0"):
+        plain.with_world_raise(-raise_)
+    if kind == "cloud":
+        with pytest.raises(PlanningError, match="exact only up to"):
+            fast.with_world_raise(np.full(len(raise_), 1.0))
+
+
+@pytest.mark.parametrize("kind", ["primitives", "cloud"])
 def test_speed_does_not_come_from_leniency(
     kind: str, worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
 ) -> None:

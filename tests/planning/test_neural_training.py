@@ -80,12 +80,22 @@ def test_a_manifest_from_before_the_oracle_tie_share_still_resumes(
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     del manifest["settings"]["oracle"]["tie"]
     del manifest["settings"]["oracle"]["clearance"]
+    del manifest["settings"]["oracle"]["clearance_rule"]
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
     (tmp_path / "shard-00001.npz").unlink()
     assert generate(DATA, tmp_path, workers=1)["complete"]
     tied = replace(DATA, oracle=replace(DATA.oracle, tie=0.05))
     with pytest.raises(ModelError, match="other settings"):
         generate(tied, tmp_path, workers=1)
+    # One made with a clearance but before its per-sphere rule had the tightest sphere's.
+    cleared = replace(DATA, oracle=replace(DATA.oracle, clearance=0.02))
+    manifest["settings"]["oracle"]["clearance"] = 0.02
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(ModelError, match="other settings"):
+        generate(cleared, tmp_path, workers=1)
+    tightest = replace(cleared, oracle=replace(cleared.oracle, clearance_rule="tightest"))
+    (tmp_path / "shard-00001.npz").unlink()
+    assert generate(tightest, tmp_path, workers=1)["complete"]
 
 
 def test_a_ray_cluster_makes_the_same_shards(data_dir: Path, tmp_path: Path) -> None:

@@ -126,25 +126,36 @@ def test_a_tie_share_labels_the_near_shortest_path_that_heads_for_the_goal(
         OracleCfg(tie=-0.1)
 
 
-def test_an_extra_clearance_keeps_the_label_that_far_from_the_wall(
+def _expected_raise(checker: CollisionChecker, ends: np.ndarray, extra: float) -> np.ndarray:
+    """(S,) each world-checked sphere's raise: the extra clearance, at most half its own
+    clearance beyond the margin at the ends (0 for the spheres the world ignores)."""
+    clear = checker.sphere_clearance(ends).min(axis=0)
+    raise_ = np.minimum(extra, 0.5 * (clear - checker.margin))
+    return np.where(np.isfinite(clear), raise_, 0.0)
+
+
+def test_an_extra_clearance_keeps_each_sphere_that_far_from_the_wall(
     wall: CollisionChecker,
 ) -> None:
     start, goal = wall_problem()
     ends = float(wall.world_clearance(np.stack([start, goal])).min())
     extra = 0.03
-    assert ends > wall.margin + extra, "the wall problem's ends are far from the wall"
+    assert ends > wall.margin + 2 * extra, "the wall problem's ends are far from the wall"
     plain, wide = (
         oracle_path(wall, start, goal, np.random.default_rng(3), replace(QUICK, clearance=c))
         for c in (0.0, extra)
     )
     assert plain.path is not None and wide.path is not None
-    assert plain.stats["margin"] == wall.margin
-    assert wide.stats["margin"] == pytest.approx(wall.margin + extra)
+    assert plain.stats["margin"] == wide.stats["margin"] == wall.margin
+    assert plain.stats["raise_max"] == 0.0
+    assert wide.stats["raise_min"] == pytest.approx(extra)
+    assert wide.stats["raise_max"] == pytest.approx(extra)
     dense = resample(wide.path, 0.005)
     assert wall.world_clearance(dense).min() >= wall.margin + extra
     assert wall.world_clearance(resample(plain.path, 0.005)).min() < wall.margin + extra
     assert edges_all_valid(wall, wide.path)
-    # An end closer than that: the margin rises by half its clearance beyond the margin.
+    # An end where one link is near the wall: that link's spheres rise by half their own
+    # clearance beyond the margin, and it does not hold down the others' raise.
     near = start.copy()
     for _ in range(200):  # swing toward the wall, 1 cm of joint 0 at a time
         if float(wall.world_clearance(near[None])[0]) <= wall.margin + 0.01:
@@ -155,9 +166,21 @@ def test_an_extra_clearance_keeps_the_label_that_far_from_the_wall(
     tight = oracle_path(wall, near, goal, np.random.default_rng(3), replace(QUICK, clearance=extra))
     assert tight.path is not None, tight.detail
     reach = float(wall.world_clearance(near[None])[0])
-    assert tight.stats["margin"] == pytest.approx(wall.margin + 0.5 * (reach - wall.margin))
+    assert tight.stats["raise_min"] == pytest.approx(0.5 * (reach - wall.margin))
+    assert tight.stats["raise_max"] == pytest.approx(extra)
+    expected = _expected_raise(wall, np.stack([near, goal]), extra)
+    kept = wall.sphere_clearance(resample(tight.path, 0.005)) - expected
+    assert kept.min() >= wall.margin, "every sphere keeps its own raise along the label"
+    # The rule of the earlier data sets: every sphere as far as the tightest allows.
+    old = replace(QUICK, clearance=extra, clearance_rule="tightest")
+    tightest = oracle_path(wall, near, goal, np.random.default_rng(3), old)
+    assert tightest.path is not None, tightest.detail
+    assert tightest.stats["raise_max"] == pytest.approx(0.5 * (reach - wall.margin))
+    assert tightest.stats["margin"] == pytest.approx(wall.margin + tightest.stats["raise_max"])
     with pytest.raises(PlanningError, match="extra clearance"):
         OracleCfg(clearance=0.2)
+    with pytest.raises(PlanningError, match="valid: sphere, tightest"):
+        OracleCfg(clearance_rule="nearest")
 
 
 def test_oracle_cost_matches_its_path(wall: CollisionChecker, rng: np.random.Generator) -> None:
