@@ -10,9 +10,9 @@ the iterations are split between calls).
 Iteration i (counted from the run's start, ``it0 + i``) extends tree ``(it0 + i) % 2``
 toward a uniform sample by at most ``step`` rad (joint space, Euclidean) and then greedily
 connects the other tree to the new node, as Kuffner and LaValle's RRT-Connect. A move is
-taken when its end configuration is valid, its points at 1/2, 1/4 and 3/4 pass
-:func:`~planning.compiled.validity.edge_screen` (a blocked move is then refused for a few
-configuration checks) and the edge is certified. Nearest neighbours are found by brute
+taken when its end configuration is valid, its points at 1/2, 1/4, 3/4 (and finer on
+long moves) pass :func:`~planning.compiled.validity.edge_screen` (a blocked move is then
+refused for a few configuration checks) and the edge is certified. Nearest neighbours are found by brute
 force: trees stay small (hundreds to a few thousand nodes) and a scan of contiguous rows
 beats a k-d tree's bookkeeping at that size.
 """
@@ -81,7 +81,7 @@ def _valid_move(
         return False
     for j in range(o.dof):
         a[j] = nodes[tree, k, j]
-    if not edge_screen(I, F, field, X, o, a, q, margin):
+    if not edge_screen(I, F, field, X, o, a, q, margin, resolution):
         return False
     return edge_ok(I, F, field, X, o, a, q, margin, resolution)
 

@@ -39,7 +39,7 @@ def _edge(
     I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, a: FloatArray,
     b: FloatArray, margin: float, resolution: float,
 ) -> bool:  # fmt: skip
-    if not edge_screen(I, F, field, X, o, a, b, margin):
+    if not edge_screen(I, F, field, X, o, a, b, margin, resolution):
         return False
     return edge_ok(I, F, field, X, o, a, b, margin, resolution)
 

@@ -13,10 +13,11 @@ import time
 import numpy as np
 
 from planning.checker import make_checker
+from planning.compiled import rrtc_kernel
 from planning.distance_field import CloudWorld
 from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere
 from planning.robot_model import load_robot
-from planning.rrtc import CompiledRRTConnect, RRTCCfg, shorten
+from planning.rrtc import CompiledRRTConnect, RRTCCfg, kernel_tables, shorten
 from planning.sphere_model import SphereModel
 
 
@@ -44,7 +45,14 @@ def warm_up() -> float:
     home, up = robot.named_configuration("home"), robot.named_configuration("up")
     free = make_checker(robot, spheres)
     planner = CompiledRRTConnect(RRTCCfg(max_iterations=50, simplify=False))
-    planner.search(free, Q[0], Q[1], rng)
+    planner.search(free, Q[0], Q[1], rng)  # may join at once: the search kernel is next
+    nodes = np.zeros((2, 8, robot.dof))
+    nodes[0, 0], nodes[1, 0] = home, up
+    I, F, field = kernel_tables(free).args()
+    rrtc_kernel.grow(
+        I, F, field, nodes, np.full((2, 8), -1, np.int64), np.ones(2, np.int64),
+        rng.random((2, robot.dof)), 0, free.margin, free.resolution, 0.1, np.zeros(5, np.int64),
+    )  # fmt: skip
     shorten(free, np.stack([home, (home + up) / 2, up]), rng, 4)
     return time.perf_counter() - t0
 
