@@ -100,7 +100,10 @@ class CompiledRRTConnect(MultiRootPlanner):
         deadline = None if budget_s is None else t0 + budget_s  # perf_counter time
         I, F, field = kernel_tables(checker).args()  # noqa: E741 (layout names)
         dof = starts.shape[1]
-        if len(starts) == len(goals) == 1 and checker.edge_valid(starts[0], goals[0]):
+        one = len(starts) == len(goals) == 1
+        if one and rrtc_kernel.straight_ok(
+            I, F, field, starts[0], goals[0], checker.margin, checker.resolution
+        ):
             path = np.stack([starts[0], goals[0]])
             straight: dict[str, Any] = {"iterations": 0, "straight": True}
             straight.update(start_index=0, goal_index=0)

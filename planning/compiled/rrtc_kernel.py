@@ -26,7 +26,7 @@ from numba import njit
 
 from gaide_core.types import FloatArray, IntArray
 from planning.compiled.layout import Field, Off, offsets
-from planning.compiled.validity import config_ok, edge_ok, edge_screen
+from planning.compiled.validity import SCREEN_POINTS, config_ok, edge_ok, edge_screen
 
 RUNNING = 0
 JOINED = 1
@@ -81,7 +81,7 @@ def _valid_move(
         return False
     for j in range(o.dof):
         a[j] = nodes[tree, k, j]
-    if not edge_screen(I, F, field, X, o, a, q, margin, resolution):
+    if not edge_screen(I, F, field, X, o, a, q, margin, resolution, SCREEN_POINTS):
         return False
     return edge_ok(I, F, field, X, o, a, q, margin, resolution)
 
@@ -144,3 +144,17 @@ def grow(I, F, field, nodes, parents, sizes, u, it0, margin, resolution, step, o
                 out[2], out[3] = (new_a, k) if ta == 0 else (k, new_a)
                 return
     out[0], out[1], out[4] = RUNNING, u.shape[0], checks
+
+
+@njit(cache=True)
+def straight_ok(I, F, field, q0, q1, margin, resolution):  # type: ignore[no-untyped-def]
+    """Is the edge q0 -> q1 (dof,) certified? Screened at 1/2, 1/4 and 3/4 first: a blocked
+    straight edge between a problem's ends is then refused for three configuration checks
+    instead of a certification creeping along an obstacle (measured on the task families:
+    0.02-0.9 ms), while a free one pays ~2 us more, where the planners' finer screen would
+    cost 30-70 us."""
+    o = offsets(I)
+    X = np.empty(o.xsize)
+    if not edge_screen(I, F, field, X, o, q0, q1, margin, resolution, 3):
+        return False
+    return edge_ok(I, F, field, X, o, q0, q1, margin, resolution)

@@ -246,11 +246,12 @@ def edge_ok(
 @njit(cache=True, inline="always")
 def edge_screen(
     I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, q0: FloatArray,
-    q1: FloatArray, margin: float, resolution: float,
+    q1: FloatArray, margin: float, resolution: float, most: int,
 ) -> bool:  # fmt: skip
     """False when a configuration at 1/2, 1/4, 3/4, then 1/8, 3/8, ... of the edge q0 -> q1
     is invalid: at least those three, and down to every ``SCREEN_STRIDE``-th of its
-    resolution steps (at most ``SCREEN_POINTS`` points), coarse to fine.
+    resolution steps, at most ``most`` points (SCREEN_POINTS for the planners' moves),
+    coarse to fine.
 
     A cheap screen for the planners, before :func:`edge_ok`: a few configuration checks
     (~0.6 us each) against a certification that, near an obstacle, can creep along for
@@ -263,7 +264,7 @@ def edge_screen(
     """
     n = edge_steps(I, F, X, o, q0, q1, resolution)
     d = 2
-    while d <= 4 or (d <= SCREEN_POINTS + 1 and d * SCREEN_STRIDE <= n):
+    while d <= 4 or (d <= most + 1 and d * SCREEN_STRIDE <= n):
         for j in range(1, d, 2):
             set_at(X, o, q0, q1, j / d)
             if not config_ok(I, F, field, X, o, margin):
@@ -318,7 +319,7 @@ def edges_screened(I, F, field, Q0, Q1, margin, resolution, out):  # type: ignor
     o = offsets(I)
     X = np.empty(o.xsize)
     for e in range(Q0.shape[0]):
-        out[e] = edge_screen(I, F, field, X, o, Q0[e], Q1[e], margin, resolution)
+        out[e] = edge_screen(I, F, field, X, o, Q0[e], Q1[e], margin, resolution, SCREEN_POINTS)
 
 
 @njit(cache=True)
