@@ -126,19 +126,10 @@ def place_all(I: IntArray, F: FloatArray, X: FloatArray, o: Off) -> None:
         place_links_of_joint(I, F, X, o, j)
 
 
-# Above the largest way from a point to its nearest lattice point, in voxels (sqrt(3) / 2 =
-# 0.8660...): by far more than rounding, so a bound with it is a strict one.
-_WAY_BOUND = 0.87
-
-
 @njit(cache=True, inline="always")
-def cloud_clearance(
-    F: FloatArray, field: Field, o: Off, x: float, y: float, z: float, r: float, cap: float
-) -> float:
-    """min(lower bound on the distance (m) from (x, y, z) to the cloud, minus ``r``, ``cap``):
-    the nearest lattice point's stored distance minus the way to it (the numpy reference's
-    formula). Where even the longest way leaves the cap, the cap is the answer and the way
-    is not computed (a square root per sphere saved on most spheres of a check)."""
+def cloud_distance(F: FloatArray, field: Field, o: Off, x: float, y: float, z: float) -> float:
+    """Lower bound on the distance (m) from (x, y, z) to the cloud: the nearest lattice
+    point's stored distance minus the way to it (the numpy reference's formula)."""
     c = o.cloud
     inv = F[c + 5]
     rx = x * inv - F[c]
@@ -147,12 +138,10 @@ def cloud_clearance(
     ix, iy, iz = np.rint(rx), np.rint(ry), np.rint(rz)
     lx, ly, lz = int(ix), int(iy), int(iz)
     if lx < 0 or lx >= o.nx or ly < 0 or ly >= o.ny or lz < 0 or lz >= o.nz:
-        return min(F[c + 4] - r, cap)
+        return F[c + 4]
     value = np.float64(field[(lx * o.ny + ly) * o.nz + lz])
-    if value - (_WAY_BOUND * F[c + 3] + 1e-6) - r >= cap:
-        return cap
     ox, oy, oz = rx - ix, ry - iy, rz - iz
-    return min(value - (math.sqrt(ox * ox + oy * oy + oz * oz) * F[c + 3] + 1e-6) - r, cap)
+    return value - (math.sqrt(ox * ox + oy * oy + oz * oz) * F[c + 3] + 1e-6)
 
 
 @njit(cache=True, inline="always")
@@ -224,7 +213,8 @@ def link_world_values(
             s = I[o.lsph + i]
             if I[o.sworld + s]:
                 c = o.xc + 3 * s
-                v = cloud_clearance(F, field, o, X[c], X[c + 1], X[c + 2], F[o.wradii + s], cap)
+                v = cloud_distance(F, field, o, X[c], X[c + 1], X[c + 2]) - F[o.wradii + s]
+                v = min(v, cap)
                 X[out + s] = v
                 low = min(low, v)
         return low
