@@ -44,6 +44,10 @@ RETRAINED = (
         ("weights-train50k-clear", "train50k-clear", 50398, kind)
         for kind in ("gaide", "mpnet", "simpnet")
     ]
+    + [
+        ("weights-train50k-clear3", "train50k-clear3", 50398, kind)
+        for kind in ("gaide", "mpnet", "simpnet")
+    ]
 )
 
 
