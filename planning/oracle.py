@@ -29,8 +29,9 @@ log = logging.getLogger(__name__)
 
 
 #: How the extra clearance is limited at the ends: each sphere by its own clearance there
-#: ("sphere"), or every sphere by the tightest one's ("tightest", the rule of the data sets
-#: made before the first; docs/results.md, "Retraining on the clearance set").
+#: ("sphere"), or every sphere by the tightest one's ("tightest": the only rule before the
+#: per-sphere one, which planning/data/train50k-clear was made with; docs/results.md, "The
+#: clearance per sphere").
 CLEARANCE_RULES = ("sphere", "tightest")
 
 #: The largest extra clearance (m) a label may ask for (a cloud world's lattice limits it

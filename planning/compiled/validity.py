@@ -256,8 +256,8 @@ def edge_screen(
     A cheap screen for the planners, before :func:`edge_ok`: a few configuration checks
     (~0.6 us each) against a certification that, near an obstacle, can creep along for
     hundreds of samples before it reaches a collision (measured on the task families: a
-    blocked 6 rad edge from a pose by the table cost 0.9 ms to certify as blocked, and such
-    edges made rrtc's shortcut pass 10x slower than its search). It can only add rejections
+    blocked 6 rad edge from a pose by the table cost 0.9 ms to refuse). It can only add
+    rejections
     (a point invalid by the lattice's lower bound might lie on an edge the certification
     would pass), so a planner that screens keeps every edge it takes certified; answers to
     edge queries never screen.
