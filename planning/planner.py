@@ -102,13 +102,13 @@ def prepare_plan(
 
 
 def check_roots(checker: CollisionChecker, starts: Array, goals: Array) -> tuple[Array, Array]:
-    """``starts`` (m, dof) and ``goals`` (n, dof) of a ``plan_between`` call as float arrays;
-    PlanningError unless each is a finite (n >= 1, dof) array. Their validity is the
-    caller's to check."""
+    """``starts`` (m, dof) and ``goals`` (n, dof) of a ``plan_between`` call as contiguous
+    float64 arrays (the compiled kernels take their rows as they are); PlanningError unless
+    each is a finite (n >= 1, dof) array. Their validity is the caller's to check."""
     dof = checker.robot.dof
     roots = []
     for what, a in (("starts", starts), ("goals", goals)):
-        arr = np.asarray(a, float)
+        arr = np.ascontiguousarray(a, float)
         if arr.ndim != 2 or arr.shape[1] != dof or not len(arr) or not np.isfinite(arr).all():
             raise PlanningError(
                 f"{what} must be a finite (n >= 1, {dof}) array of configurations, "

@@ -104,6 +104,12 @@ def test_plan_between_joins_one_of_many_roots(wall: CollisionChecker) -> None:
     np.testing.assert_array_equal(res.path[0], starts[i])
     np.testing.assert_array_equal(res.path[-1], goals[j])
     assert wall.first_invalid_edge(res.path) is None
+    # Roots in any memory layout (here column-major, whose rows are strided) plan alike.
+    again = CompiledRRTConnect().plan_between(
+        wall, np.asfortranarray(starts), np.asfortranarray(goals), budget_s=BUDGET_S,
+        rng=np.random.default_rng(7),
+    )  # fmt: skip
+    np.testing.assert_array_equal(again.path, res.path)
     with pytest.raises(PlanningError, match="starts must be a finite"):
         CompiledRRTConnect().plan_between(wall, starts[:, :5], goals, budget_s=1.0, rng=rng)
 
