@@ -300,13 +300,16 @@ class SphereCollisionChecker:
         """(B, S, 3) world positions of the sphere centres for configurations Q (B, dof)."""
         return self.kin.points(Q, self.sphere_joint, self.sphere_local)
 
+    def _clearance(self, Q: Array, idx: npt.NDArray[np.int64]) -> Array:
+        """(B, len(idx)) distance - radius (m) of spheres ``idx`` at configurations Q."""
+        centers = self.sphere_centers(Q)[:, idx]
+        B, S, _ = centers.shape
+        return self.world.distance(centers.reshape(-1, 3)).reshape(B, S) - self.radii[idx]
+
     def sphere_clearance(self, Q: Array) -> Array:
         """(B, S) distance - radius (m) of each world-checked sphere, +inf for the others."""
-        ws = self.world_spheres
-        centers = self.sphere_centers(Q)[:, ws]
-        B, S, _ = centers.shape
-        out = np.full((B, len(self.radii)), np.inf)
-        out[:, ws] = self.world.distance(centers.reshape(-1, 3)).reshape(B, S) - self.radii[ws]
+        out = np.full((len(Q), len(self.radii)), np.inf)
+        out[:, self.world_spheres] = self._clearance(Q, self.world_spheres)
         return out
 
     def world_clearance(self, Q: Array, links: tuple[str, ...] | None = None) -> Array:
@@ -317,10 +320,7 @@ class SphereCollisionChecker:
             for name in links:
                 self.robot.link(name)
             idx = idx[np.isin(np.asarray(self.spheres.links)[idx], list(links))]
-        centers = self.sphere_centers(Q)[:, idx]
-        B, S, _ = centers.shape
-        d = self.world.distance(centers.reshape(-1, 3)).reshape(B, S)
-        return np.min(d - self.radii[idx], axis=1)
+        return np.min(self._clearance(Q, idx), axis=1)
 
     def config_valid(self, Q: Array) -> Mask:
         """(B,) True where configuration Q[b] is valid (limits, world, self)."""

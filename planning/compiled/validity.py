@@ -121,6 +121,20 @@ def sample_values(
 
 
 @njit(cache=True, inline="always")
+def _sphere_reach(F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray) -> float:
+    """``X[o.xreach + s]`` = sphere s's bound (m) on its motion over the edge q0 -> q1;
+    returns the largest."""
+    top = 0.0
+    for s in range(o.S):
+        acc = 0.0
+        for j in range(o.dof):
+            acc += abs(q1[j] - q0[j]) * F[o.disp + s * o.dof + j]
+        X[o.xreach + s] = acc
+        top = max(top, acc)
+    return top
+
+
+@njit(cache=True, inline="always")
 def edge_steps(
     I: IntArray, F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray,
     resolution: float,
@@ -129,13 +143,7 @@ def edge_steps(
     ``resolution`` (m) between samples. Over the whole edge, ``X[o.xreach + s]`` receives
     sphere s's bound (m) on its motion, ``X[o.xpreach + p]`` pair p's on the change of its
     centre distance, ``X[o.xgreach + g]`` the largest of pair group g's."""
-    top = 0.0
-    for s in range(o.S):
-        acc = 0.0
-        for j in range(o.dof):
-            acc += abs(q1[j] - q0[j]) * F[o.disp + s * o.dof + j]
-        X[o.xreach + s] = acc
-        top = max(top, acc)
+    top = _sphere_reach(F, X, o, q0, q1)
     for g in range(o.G):
         group_top = 0.0
         for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
@@ -262,7 +270,9 @@ def edge_screen(
     would pass), so a planner that screens keeps every edge it takes certified; answers to
     edge queries never screen.
     """
-    n = edge_steps(I, F, X, o, q0, q1, resolution)
+    # The edge's resolution steps (edge_steps without the self pairs' reach, which only the
+    # certification needs).
+    n = max(math.ceil(_sphere_reach(F, X, o, q0, q1) / resolution), 1)
     d = 2
     while d <= 4 or (d <= most + 1 and d * SCREEN_STRIDE <= n):
         for j in range(1, d, 2):
