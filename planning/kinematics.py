@@ -13,6 +13,7 @@ import pinocchio as pin
 
 from gaide_core.errors import RobotModelError
 from gaide_core.types import Array
+from planning.compiled.trig import sincos_array
 from planning.robot_model import RobotModel
 
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
@@ -107,7 +108,7 @@ class BatchKinematics:
 
 def _axis_rotation(axis: Array, angle: Array) -> Array:
     """(B, 3, 3) rotations about a unit ``axis`` by ``angle`` (B,) rad (Rodrigues)."""
-    c, s = np.cos(angle), np.sin(angle)
+    s, c = sincos_array(angle)  # the kernels' sine and cosine, bit for bit
     x, y, z = axis
     C = 1.0 - c
     out = np.empty((angle.shape[0], 3, 3), angle.dtype)

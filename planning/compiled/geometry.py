@@ -30,11 +30,26 @@ from planning.compiled.layout import (
     Field,
     Off,
 )
+from planning.compiled.trig import REDUCED_UP_TO, sincos
+
+# The reference kinematics' sine and cosine (planning.compiled.trig), compiled for scalars.
+_sincos = njit(cache=True, inline="always")(sincos)
 
 
 @njit(cache=True, inline="always")
-def place_root(F: FloatArray, X: FloatArray, o: Off) -> None:
-    """Joint 0 (the universe) at the robot's base pose."""
+def place_root(I: IntArray, F: FloatArray, X: FloatArray, o: Off) -> None:
+    """Joint 0 (the universe) at the robot's base pose, and the sine and cosine of every
+    revolute joint's angle at ``X[o.xsc + 2 j]`` (all first: they do not depend on each
+    other, where each joint's pose waits for its parent's)."""
+    for j in range(1, o.J):
+        if I[o.jtype + j] == JOINT_REVOLUTE:
+            v = X[o.xq + I[o.idxq + j]]
+            if abs(v) <= REDUCED_UP_TO:
+                s, c = _sincos(v)
+            else:
+                s, c = math.sin(v), math.cos(v)
+            X[o.xsc + 2 * j] = s
+            X[o.xsc + 2 * j + 1] = c
     for a in range(3):
         for b in range(3):
             X[o.xR + 3 * a + b] = F[o.base + 4 * a + b]
@@ -44,7 +59,8 @@ def place_root(F: FloatArray, X: FloatArray, o: Off) -> None:
 @njit(cache=True, inline="always")
 def place_joint(I: IntArray, F: FloatArray, X: FloatArray, o: Off, j: int) -> None:
     """World pose of joint j >= 1 at the configuration in ``X[o.xq:]``, from its parent's
-    (already placed): rotation at ``X[o.xR + 9 j]``, translation at ``X[o.xt + 3 j]``."""
+    (already placed) and its angle's sine and cosine (by :func:`place_root`): rotation at
+    ``X[o.xR + 9 j]``, translation at ``X[o.xt + 3 j]``."""
     p = o.xR + 9 * I[o.parent + j]
     tp = o.xt + 3 * I[o.parent + j]
     P = o.place_R + 9 * j
@@ -69,7 +85,7 @@ def place_joint(I: IntArray, F: FloatArray, X: FloatArray, o: Off, j: int) -> No
     v = X[o.xq + I[o.idxq + j]]
     R = o.xR + 9 * j
     if kind == JOINT_REVOLUTE:
-        c, s = math.cos(v), math.sin(v)
+        s, c = X[o.xsc + 2 * j], X[o.xsc + 2 * j + 1]
         C = 1.0 - c
         m00, m01, m02 = c + x * x * C, x * y * C - z * s, x * z * C + y * s
         m10, m11, m12 = y * x * C + z * s, c + y * y * C, y * z * C - x * s
@@ -119,7 +135,7 @@ def place_links_of_joint(I: IntArray, F: FloatArray, X: FloatArray, o: Off, j: i
 @njit(cache=True, inline="always")
 def place_all(I: IntArray, F: FloatArray, X: FloatArray, o: Off) -> None:
     """Every joint, link bound and sphere at the configuration in ``X[o.xq:]``."""
-    place_root(F, X, o)
+    place_root(I, F, X, o)
     place_links_of_joint(I, F, X, o, 0)
     for j in range(1, o.J):
         place_joint(I, F, X, o, j)

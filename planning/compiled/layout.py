@@ -92,7 +92,7 @@ Off = namedtuple(
         "lower", "upper", "cloud", "pR", "pt", "pdim", "pbound", "pdisp", "wradii", "lwradius",
         # offsets into X (scratch), and its size
         "xR", "xt", "xc", "xlc", "xwv", "xpv", "xreach", "xpreach", "xgreach", "xgcapped",
-        "xq", "xsize",
+        "xsc", "xq", "xsize",
     ],
 )  # fmt: skip
 
@@ -134,7 +134,8 @@ def offsets(I: IntArray) -> Off:
     w = _io(I, I_WORLD)
     # scratch: joint rotations, translations, sphere and link centres, two samples' world
     # values and pair gaps, per-sphere and per-pair reach, per-group reach, two samples'
-    # flags of the groups whose gaps are all capped, one configuration
+    # flags of the groups whose gaps are all capped, each joint's sine and cosine, one
+    # configuration
     xR = 0
     xt = xR + 9 * J
     xc = xt + 3 * J
@@ -145,7 +146,8 @@ def offsets(I: IntArray) -> Off:
     xpreach = xreach + S
     xgreach = xpreach + P
     xgcapped = xgreach + G
-    xq = xgcapped + 2 * G
+    xsc = xgcapped + 2 * G
+    xq = xsc + 2 * J
     return Off(
         J, S, L, P, G, dof, I[w], I[w + 1], I[w + 2], I[w + 3],
         _io(I, I_PARENT), _io(I, I_JTYPE), _io(I, I_IDXQ), _io(I, I_SWORLD), _io(I, I_LSPH),
@@ -155,5 +157,5 @@ def offsets(I: IntArray) -> Off:
         _fo(I, F_RADII), _fo(I, F_LCENTRE), _fo(I, F_LRADIUS), _fo(I, F_DISP), _fo(I, F_LOWER),
         _fo(I, F_UPPER), _fo(I, F_CLOUD), _fo(I, F_PR), _fo(I, F_PT), _fo(I, F_PDIM),
         _fo(I, F_PBOUND), _fo(I, F_PDISP), _fo(I, F_WRADII), _fo(I, F_LWRADIUS),
-        xR, xt, xc, xlc, xwv, xpv, xreach, xpreach, xgreach, xgcapped, xq, xq + dof,
+        xR, xt, xc, xlc, xwv, xpv, xreach, xpreach, xgreach, xgcapped, xsc, xq, xq + dof,
     )  # fmt: skip

@@ -79,22 +79,35 @@ def self_overlap(I: IntArray, F: FloatArray, X: FloatArray, o: Off) -> bool:
     return False
 
 
-@njit(cache=True)
-def config_ok(
+def _config_ok(
     I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, margin: float
 ) -> bool:
-    """Is the configuration in ``X[o.xq:]`` valid?"""
+    """Is the configuration in ``X[o.xq:]`` valid?
+
+    A joint's links are all tested before the check returns: a return from inside the loop
+    over them cost 140 ns a configuration (750 vs 610 ns in the empty world, the UR5),
+    machine code that keeps less in registers."""
     if not within_limits(F, X, o):
         return False
-    place_root(F, X, o)
+    place_root(I, F, X, o)
+    hit = False
     for j in range(o.J):
         if j > 0:
             place_joint(I, F, X, o, j)
         place_links_of_joint(I, F, X, o, j)
         for lk in range(I[o.jlstart + j], I[o.jlstart + j + 1]):
             if link_world_values(I, F, field, X, o, lk, margin, o.xwv) < margin:
-                return False
+                hit = True
+        if hit:
+            return False
     return not self_overlap(I, F, X, o)
+
+
+# Called (config_ok) where a configuration check is one step among others; inlined
+# (config_ok_inline) in the batch loop, where the call itself cost 60 ns of a 530 ns check.
+# Inlined everywhere, the kernels took 3.7x as long to compile (184 s against 49 s).
+config_ok = njit(cache=True)(_config_ok)
+config_ok_inline = njit(cache=True, inline="always")(_config_ok)
 
 
 @njit(cache=True)
@@ -294,7 +307,7 @@ def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
     for b in range(Q.shape[0]):
         for j in range(o.dof):
             X[o.xq + j] = Q[b, j]
-        out[b] = config_ok(I, F, field, X, o, margin)
+        out[b] = config_ok_inline(I, F, field, X, o, margin)
 
 
 @njit(cache=True)
