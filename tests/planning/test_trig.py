@@ -49,4 +49,3 @@ def test_beyond_the_reduced_range_the_library_answers() -> None:
     np.testing.assert_array_equal(s[1:], np.sin(x[1:]))
     np.testing.assert_array_equal(c[1:], np.cos(x[1:]))
     assert s[0] == sincos(0.5)[0]
-
