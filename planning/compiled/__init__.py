@@ -18,6 +18,7 @@ __all__ = [
     "rrtc_kernel",
     "shortcut_kernel",
     "tables",
+    "trig",
     "validity",
     "warmup",
 ]

@@ -62,9 +62,11 @@ def sincos(x: Any) -> tuple[Any, Any]:
 
 
 def sincos_array(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(sin x, cos x) elementwise, any x: :func:`sincos`, the library beyond its range."""
-    s, c = sincos(x)
-    far = np.abs(x) > REDUCED_UP_TO
+    """(sin x, cos x) elementwise, any x: :func:`sincos`, the library beyond its range.
+    Computed in float64 (the reduction's constants need it), returned in x's dtype."""
+    xd = np.asarray(x, np.float64)
+    s, c = sincos(xd)
+    far = np.abs(xd) > REDUCED_UP_TO
     if far.any():
-        s[far], c[far] = np.sin(x[far]), np.cos(x[far])
-    return s, c
+        s[far], c[far] = np.sin(xd[far]), np.cos(xd[far])
+    return s.astype(x.dtype, copy=False), c.astype(x.dtype, copy=False)

@@ -49,3 +49,12 @@ def test_beyond_the_reduced_range_the_library_answers() -> None:
     np.testing.assert_array_equal(s[1:], np.sin(x[1:]))
     np.testing.assert_array_equal(c[1:], np.cos(x[1:]))
     assert s[0] == sincos(0.5)[0]
+
+
+def test_single_precision_angles_are_reduced_in_double() -> None:
+    x = np.linspace(-2 * np.pi, 2 * np.pi, 1001)
+    s, c = sincos_array(x.astype(np.float32))
+    assert s.dtype == np.float32 and c.dtype == np.float32
+    ref_s, ref_c = sincos(x.astype(np.float32).astype(np.float64))
+    np.testing.assert_array_equal(s, ref_s.astype(np.float32))
+    np.testing.assert_array_equal(c, ref_c.astype(np.float32))
