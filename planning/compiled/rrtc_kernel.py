@@ -13,8 +13,8 @@ connects the other tree to the new node, as Kuffner and LaValle's RRT-Connect. A
 taken when its end configuration is valid, its points at 1/2, 1/4, 3/4 (and finer on
 long moves) pass :func:`~planning.compiled.validity.edge_screen` (a blocked move is then
 refused for a few configuration checks) and the edge is certified. Nearest neighbours are
-found by brute force: trees stay small (hundreds to a few thousand nodes) and a scan of contiguous rows
-beats a k-d tree's bookkeeping at that size.
+found by brute force: trees stay small (hundreds to a few thousand nodes) and a scan of
+contiguous rows beats a k-d tree's bookkeeping at that size.
 """
 
 from __future__ import annotations
