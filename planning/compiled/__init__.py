@@ -2,8 +2,9 @@
 
 Python objects never enter a kernel: :mod:`planning.compiled.tables` exports the robot,
 sphere model and world once as flat arrays (:mod:`planning.compiled.layout`), and the
-kernels (:mod:`~planning.compiled.geometry`, :mod:`~planning.compiled.validity`) take only
-those. :class:`~planning.compiled.checker.CompiledChecker` is the Python face.
+kernels (:mod:`~planning.compiled.geometry`, :mod:`~planning.compiled.validity`,
+:mod:`~planning.compiled.lanes`) take only those.
+:class:`~planning.compiled.checker.CompiledChecker` is the Python face.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 __all__ = [
     "checker",
     "geometry",
+    "lanes",
     "layout",
     "rrtc_kernel",
     "shortcut_kernel",

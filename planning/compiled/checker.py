@@ -14,7 +14,7 @@ import numpy.typing as npt
 from gaide_core.errors import PlanningError
 from gaide_core.types import Array
 from planning.collision import Mask, SphereCollisionChecker
-from planning.compiled import validity
+from planning.compiled import lanes, validity
 from planning.compiled.tables import Tables, checker_tables
 
 
@@ -45,7 +45,7 @@ class CompiledChecker(SphereCollisionChecker):
     def config_valid(self, Q: Array) -> Mask:
         Q = self._batch(Q)
         out = np.empty(Q.shape[0], bool)
-        validity.configs_valid(*self._tables, Q, self.margin, out)
+        lanes.configs_valid(*self._tables, Q, self.margin, out)
         return out
 
     def sphere_centers(self, Q: Array) -> Array:

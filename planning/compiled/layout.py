@@ -77,7 +77,11 @@ PRIM_CYLINDER = 1
 PRIM_SPHERE = 2
 
 # A cloud's distance lattice (float32), or the placeholder of the other worlds (float64).
+# The lattice (nx * ny * nz values, row-major) is followed by the smallest value of each
+# BLOCK^3 block of it (ceil(nx / BLOCK) * ceil(ny / BLOCK) * ceil(nz / BLOCK), row-major):
+# see planning.compiled.tables.block_minima.
 Field = npt.NDArray[np.float32] | npt.NDArray[np.float64]
+BLOCK = 8
 
 Off = namedtuple(
     "Off",

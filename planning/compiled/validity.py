@@ -103,11 +103,10 @@ def _config_ok(
     return not self_overlap(I, F, X, o)
 
 
-# Called (config_ok) where a configuration check is one step among others; inlined
-# (config_ok_inline) in the batch loop, where the call itself cost 60 ns of a 530 ns check.
-# Inlined everywhere, the kernels took 3.7x as long to compile (184 s against 49 s).
+# Compiled as a function of its own: inlined into its callers, the kernels took 3.7x as long
+# to compile (184 s against 49 s). Batches of configurations go through
+# planning.compiled.lanes instead, many configurations at a time.
 config_ok = njit(cache=True)(_config_ok)
-config_ok_inline = njit(cache=True, inline="always")(_config_ok)
 
 
 @njit(cache=True)
@@ -296,17 +295,6 @@ def edge_screen(
 
 
 # -- entry points (called from Python) ------------------------------------------------------
-
-
-@njit(cache=True)
-def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
-    """``out[b]`` = validity of configuration ``Q[b]`` (B, dof)."""
-    o = offsets(I)
-    X = np.empty(o.xsize)
-    for b in range(Q.shape[0]):
-        for j in range(o.dof):
-            X[o.xq + j] = Q[b, j]
-        out[b] = config_ok_inline(I, F, field, X, o, margin)
 
 
 @njit(cache=True)

@@ -13,6 +13,8 @@ from gaide_core.transforms import from_xyz_rpy
 from planning.checker import make_checker
 from planning.collision import SphereCollisionChecker
 from planning.compiled.checker import CompiledChecker
+from planning.compiled.layout import BLOCK
+from planning.compiled.tables import block_minima
 from planning.distance_field import CloudWorld
 from planning.kinematics import reference_points
 from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere
@@ -68,6 +70,45 @@ def test_configurations_agree_exactly(
     assert 0.05 < expected.mean() < 0.95, "both valid and invalid configurations are tested"
     singles = [fast.config_valid_one(q) for q in Q[:300]]
     np.testing.assert_array_equal(singles, expected[:300])
+
+
+@pytest.mark.parametrize("kind", ["empty", "primitives", "cloud", "small cloud"])
+def test_batches_of_any_size_agree_with_the_single_check(
+    kind: str, worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
+) -> None:
+    # Batches go through the lane kernel (planning.compiled.lanes), single configurations
+    # through the scalar one: the same answer for every lane of a full or partial pass,
+    # outside the joint limits, and (small cloud) for spheres outside the cloud's lattice.
+    rng = np.random.default_rng(6)
+    if kind == "small cloud":
+        world = CloudWorld(rng.normal([0.45, 0.1, 0.35], 0.06, size=(400, 3)), voxel=0.01)
+    else:
+        world = worlds[kind]  # type: ignore[assignment]
+    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
+    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    Q = robot.sample_uniform(rng, 1400)
+    if kind != "empty":
+        Q[:700] = _near(ref, rng, 700)
+    Q[::9, 2] = robot.upper[2] + 0.01  # outside the limits
+    Q[::13, 0] = 2.0e5  # beyond the sine reduction's range (the library's sin and cos)
+    expected = np.array([fast.config_valid_one(q) for q in Q])
+    np.testing.assert_array_equal(ref.config_valid(Q), expected)
+    assert 0.05 < expected.mean() < 0.95, "both valid and invalid configurations are tested"
+    start = 0
+    for size in (1, 63, 64, 65, 130, 1077):
+        batch = Q[start : start + size]
+        np.testing.assert_array_equal(fast.config_valid(batch), expected[start : start + size])
+        start += size
+    assert start == len(Q)
+
+
+def test_block_minima_are_the_smallest_value_of_each_block() -> None:
+    rng = np.random.default_rng(7)
+    field = rng.random((13, 9, 17)).astype(np.float32)  # no side a multiple of the block
+    minima = block_minima(field).reshape(2, 2, 3)
+    for idx in np.ndindex(*minima.shape):
+        block = field[tuple(slice(i * BLOCK, (i + 1) * BLOCK) for i in idx)]
+        assert minima[idx] == block.min()
 
 
 @pytest.mark.parametrize("kind", ["empty", "primitives", "cloud"])
