@@ -157,9 +157,9 @@ def _carry(W: FloatArray, j: int, F: FloatArray, src: int, out: FloatArray, n: i
     """``out[a, k]`` = joint j's pose in lane k applied to the point F[src:src + 3] (as
     :func:`~planning.compiled.geometry._carry`)."""
     x, y, z = F[src], F[src + 1], F[src + 2]
-    R, t = W[j], W[j]
+    pose = W[j]
     for a in range(3):
-        R0, R1, R2, T, o_ = R[3 * a], R[3 * a + 1], R[3 * a + 2], t[9 + a], out[a]
+        R0, R1, R2, T, o_ = pose[3 * a], pose[3 * a + 1], pose[3 * a + 2], pose[9 + a], out[a]
         for k in range(n):
             o_[k] = R0[k] * x + R1[k] * y + R2[k] * z + T[k]
 
