@@ -34,6 +34,7 @@ import numpy as np
 from numba import njit
 
 from gaide_core.types import BoolArray, FloatArray, IntArray
+from planning.collision import CLEARANCE_CAP, DENSE_SAMPLES
 from planning.compiled.geometry import is_cloud_lattice
 from planning.compiled.layout import (
     BLOCK,
@@ -177,16 +178,17 @@ def _place_spheres(I: IntArray, F: FloatArray, o: Off, W: FloatArray, C: FloatAr
 
 
 @njit(cache=True, inline="always")
-def _cloud_hits(F: FloatArray, field: Field, o: Off, Cs: FloatArray, wr: float,
-                margin: float, bad: BoolArray, S: Scratch, n: int) -> None:  # fmt: skip
-    """``bad[k] |=`` the sphere at ``Cs[:, k]`` (world radius wr) is within the margin of
-    the cloud, by :func:`~planning.compiled.geometry.cloud_distance` in lane k.
+def _cloud_values(F: FloatArray, field: Field, o: Off, Cs: FloatArray, wr: float, cap: float,
+                  out: FloatArray, bad: BoolArray, S: Scratch, n: int) -> None:  # fmt: skip
+    """``out[k]`` = min(the cloud clearance of the sphere at ``Cs[:, k]`` (world radius wr),
+    cap), by :func:`~planning.compiled.geometry.cloud_distance` in lane k; lanes already
+    in ``bad`` get a value, not their own.
 
     The smallest value of the nearest value's block is read first: where it clears the
-    sphere, so does the value (``x - way`` and then ``- wr`` round monotonically in x), and
-    the large lattice is not read. Lanes already found invalid do not read it either. The
-    look-ups are loops of their own: LLVM leaves a loop that reads an array at computed
-    indices unvectorized here (it judges the CPU's gathers too slow), and would the
+    sphere by the cap, so does the value (``x - way`` and then ``- wr`` round monotonically
+    in x), and the large lattice is not read. Lanes already found invalid do not read it
+    either. The look-ups are loops of their own: LLVM leaves a loop that reads an array at
+    computed indices unvectorized here (it judges the CPU's gathers too slow), and would the
     arithmetic around it too."""
     c = o.cloud
     ox_, oy_, oz_, scale, band, inv = F[c], F[c + 1], F[c + 2], F[c + 3], F[c + 4], F[c + 5]
@@ -214,22 +216,25 @@ def _cloud_hits(F: FloatArray, field: Field, o: Off, Cs: FloatArray, wr: float,
     for k in range(n):
         low[k] = field[block[k]]
     for k in range(n):
-        look[k] = (cell[k] >= 0) & (not bad[k]) & (low[k] - way[k] - wr < margin)
+        look[k] = (cell[k] >= 0) & (not bad[k]) & (low[k] - way[k] - wr < cap)
     for k in range(n):
         fine[k] = field[cell[k] if look[k] else 0]
     for k in range(n):
         value = fine[k] if look[k] else low[k]
         d = value - way[k] if cell[k] >= 0 else band
-        bad[k] |= d - wr < margin
+        out[k] = min(d - wr, cap)
 
 
 @njit(cache=True, inline="always")
-def _primitive_hits(I: IntArray, F: FloatArray, o: Off, lk: int, C: FloatArray,
-                    LC: FloatArray, margin: float, bad: BoolArray, need: BoolArray,
-                    n: int) -> None:  # fmt: skip
-    """``bad[k] |=`` a world sphere of link lk is within the margin of a primitive, with
-    :func:`~planning.compiled.geometry.link_world_values`' bounding-sphere skips."""
+def _primitive_values(I: IntArray, F: FloatArray, o: Off, lk: int, C: FloatArray,
+                      LC: FloatArray, cap: float, V: FloatArray, bad: BoolArray,
+                      need: BoolArray, n: int) -> None:  # fmt: skip
+    """``V[s, k]`` = min(the clearance of world sphere s of link lk from the primitives,
+    cap) in lane k, with :func:`~planning.compiled.geometry.link_world_values`'
+    bounding-sphere skips (lanes already in ``bad`` get a value, not their own)."""
     lo, hi = I[o.lstart + lk], I[o.lstart + lk + 1]
+    for i in range(lo, hi):
+        V[I[o.lsph + i], :n] = cap
     lwr = F[o.lwradius + lk]
     L0, L1, L2 = LC[lk, 0], LC[lk, 1], LC[lk, 2]
     for m in range(o.M):
@@ -238,7 +243,7 @@ def _primitive_hits(I: IntArray, F: FloatArray, o: Off, lk: int, C: FloatArray,
         any_need = False
         for k in range(n):
             dx, dy, dz = L0[k] - px, L1[k] - py, L2[k] - pz
-            near = not (math.sqrt(dx * dx + dy * dy + dz * dz) - pb - lwr >= margin)
+            near = not (math.sqrt(dx * dx + dy * dy + dz * dz) - pb - lwr >= cap)
             need[k] = near & (not bad[k])
             any_need |= need[k]
         if not any_need:
@@ -250,7 +255,7 @@ def _primitive_hits(I: IntArray, F: FloatArray, o: Off, lk: int, C: FloatArray,
             if not I[o.sworld + s]:
                 continue
             wr = F[o.wradii + s]
-            X0, X1, X2 = C[s, 0], C[s, 1], C[s, 2]
+            X0, X1, X2, Vs = C[s, 0], C[s, 1], C[s, 2], V[s]
             if kind == PRIM_BOX:
                 for k in range(n):
                     dx, dy, dz = X0[k] - px, X1[k] - py, X2[k] - pz
@@ -261,13 +266,14 @@ def _primitive_hits(I: IntArray, F: FloatArray, o: Off, lk: int, C: FloatArray,
                     qx, qy, qz = abs(lx) - F[d], abs(ly) - F[d + 1], abs(lz) - F[d + 2]
                     ex, ey, ez = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
                     dist = math.sqrt(ex * ex + ey * ey + ez * ez) + min(max(qx, max(qy, qz)), 0.0)
-                    bad[k] |= need[k] & (not (reach >= margin)) & (dist - wr < margin)
+                    take = need[k] & (not (reach >= cap))
+                    Vs[k] = min(Vs[k], dist - wr if take else np.inf)
             elif kind == PRIM_CYLINDER:  # math.hypot: a library call, these lanes run one by one
                 for k in range(n):
                     if not need[k]:
                         continue
                     dx, dy, dz = X0[k] - px, X1[k] - py, X2[k] - pz
-                    if math.sqrt(dx * dx + dy * dy + dz * dz) - pb - wr >= margin:
+                    if math.sqrt(dx * dx + dy * dy + dz * dz) - pb - wr >= cap:
                         continue
                     lx = F[R] * dx + F[R + 3] * dy + F[R + 6] * dz
                     ly = F[R + 1] * dx + F[R + 4] * dy + F[R + 7] * dz
@@ -275,13 +281,42 @@ def _primitive_hits(I: IntArray, F: FloatArray, o: Off, lk: int, C: FloatArray,
                     dr = math.hypot(lx, ly) - F[d]
                     dh = abs(lz) - F[d + 1]
                     dist = math.hypot(max(dr, 0.0), max(dh, 0.0)) + min(max(dr, dh), 0.0)
-                    bad[k] |= dist - wr < margin
+                    Vs[k] = min(Vs[k], dist - wr)
             else:
                 for k in range(n):
                     dx, dy, dz = X0[k] - px, X1[k] - py, X2[k] - pz
                     reach = math.sqrt(dx * dx + dy * dy + dz * dz) - pb - wr
                     dist = math.sqrt(dx * dx + dy * dy + dz * dz) - F[d]
-                    bad[k] |= need[k] & (not (reach >= margin)) & (dist - wr < margin)
+                    take = need[k] & (not (reach >= cap))
+                    Vs[k] = min(Vs[k], dist - wr if take else np.inf)
+
+
+@njit(cache=True, inline="always")
+def _world_values(I: IntArray, F: FloatArray, field: Field, o: Off, C: FloatArray,
+                  LC: FloatArray, cap: float, margin: float, V: FloatArray, bad: BoolArray,
+                  need: BoolArray, S: Scratch, n: int) -> None:  # fmt: skip
+    """``V[s, k]`` = min(world clearance of world sphere s in lane k, cap) (as
+    :func:`~planning.compiled.validity.sample_values`), and ``bad[k] |=`` one is below
+    the margin. With cap = margin, only that comparison is exact (a configuration check)."""
+    if o.M == 0 and not is_cloud_lattice(field):  # the empty world
+        V[:, :n] = cap
+        return
+    for lk in range(o.L):
+        if not I[o.lworld + lk]:
+            continue
+        if is_cloud_lattice(field):
+            for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
+                s = I[o.lsph + i]
+                if I[o.sworld + s]:
+                    _cloud_values(F, field, o, C[s], F[o.wradii + s], cap, V[s], bad, S, n)
+        else:
+            _primitive_values(I, F, o, lk, C, LC, cap, V, bad, need, n)
+        for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
+            s = I[o.lsph + i]
+            if I[o.sworld + s]:
+                Vs = V[s]
+                for k in range(n):
+                    bad[k] |= Vs[k] < margin
 
 
 @njit(cache=True, inline="always")
@@ -321,6 +356,88 @@ def _self_hits(I: IntArray, F: FloatArray, o: Off, C: FloatArray, LC: FloatArray
                 bad[k] |= open_[k] & (dx * dx + dy * dy + dz * dz < r2)
 
 
+@njit(cache=True, inline="always")
+def _self_values(I: IntArray, F: FloatArray, o: Off, C: FloatArray, LC: FloatArray,
+                 cap: float, G: FloatArray, capped: BoolArray, bad: BoolArray,
+                 n: int) -> None:  # fmt: skip
+    """``G[p, k]`` = min(gap of self pair p in lane k, cap) and ``bad[k] |=`` a gap is
+    negative (an overlap), as :func:`~planning.compiled.geometry.group_gaps`; a pair group
+    whose links' bounding spheres are the cap apart in every lane is only marked
+    ``capped[g]`` (every gap of it is the cap), its gaps not written."""
+    for g in range(o.G):
+        a, b = I[o.glinks + 2 * g], I[o.glinks + 2 * g + 1]
+        la, lb = F[o.lradius + a], F[o.lradius + b]
+        A0, A1, A2, B0, B1, B2 = LC[a, 0], LC[a, 1], LC[a, 2], LC[b, 0], LC[b, 1], LC[b, 2]
+        far = True
+        for k in range(n):
+            dx, dy, dz = A0[k] - B0[k], A1[k] - B1[k], A2[k] - B2[k]
+            far &= math.sqrt(dx * dx + dy * dy + dz * dz) - la - lb >= cap
+        capped[g] = far
+        if far:
+            continue
+        for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
+            i, j = I[o.pairs + 2 * p], I[o.pairs + 2 * p + 1]
+            r = F[o.radii + i] + F[o.radii + j]
+            I0, I1, I2, J0, J1, J2 = C[i, 0], C[i, 1], C[i, 2], C[j, 0], C[j, 1], C[j, 2]
+            Gp = G[p]
+            for k in range(n):
+                dx, dy, dz = I0[k] - J0[k], I1[k] - J1[k], I2[k] - J2[k]
+                Gp[k] = math.sqrt(dx * dx + dy * dy + dz * dz) - r
+            for k in range(n):
+                bad[k] |= Gp[k] < 0.0
+                Gp[k] = min(Gp[k], cap)
+
+
+@njit(cache=True)
+def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
+                 q0: FloatArray, q1: FloatArray, margin: float) -> int:  # fmt: skip
+    """The dense certificate of the edge q0 -> q1 (:mod:`planning.collision`), its
+    DENSE_SAMPLES evenly spaced configurations one per lane: -1 if one of them is invalid,
+    else the first k whose samples k and k + 1 fail the two-sample bound (DENSE_SAMPLES - 1
+    if none: the edge is certified). The reach of every sphere and pair over the edge is in
+    ``X`` (by :func:`~planning.compiled.validity.edge_steps`)."""
+    K = DENSE_SAMPLES
+    qv = np.empty((o.dof, K))
+    sn, cs = np.zeros((o.J, K)), np.zeros((o.J, K))
+    W = np.empty((o.J, 12, K))
+    C, LC = np.empty((o.S, 3, K)), np.empty((o.L, 3, K))
+    V, G = np.empty((o.S, K)), np.empty((o.P, K))
+    bad, need, capped = np.zeros(K, np.bool_), np.empty(K, np.bool_), np.empty(o.G, np.bool_)
+    S = Scratch(np.empty(K, np.int64), np.empty(K, np.int64), np.empty(K), np.empty(K),
+                np.empty(K), np.empty(K, np.bool_))  # fmt: skip
+    t = np.empty(K)
+    for k in range(K):
+        t[k] = k / (K - 1)
+    for j in range(o.dof):
+        lo, hi, v, a, d = F[o.lower + j], F[o.upper + j], qv[j], q0[j], q1[j] - q0[j]
+        for k in range(K):
+            v[k] = a + t[k] * d
+            bad[k] |= not ((lo <= v[k]) & (v[k] <= hi))
+    _angles(I, o, qv, sn, cs, K)
+    _place_joints(I, F, o, qv, sn, cs, W, K)
+    _place_spheres(I, F, o, W, C, LC, K)
+    _world_values(I, F, field, o, C, LC, CLEARANCE_CAP, margin, V, bad, need, S, K)
+    _self_values(I, F, o, C, LC, CLEARANCE_CAP, G, capped, bad, K)
+    for k in range(K):
+        if bad[k]:
+            return -1
+    for k in range(K - 1):
+        dt = t[k + 1] - t[k]
+        for s in range(o.S):
+            bound = 2.0 * margin + X[o.xreach + s] * dt
+            if I[o.sworld + s] and V[s, k] + V[s, k + 1] < bound:
+                return k
+        for g in range(o.G):
+            if capped[g]:  # every gap the cap: the largest reach decides (rounding is monotonic)
+                if X[o.xgreach + g] * dt > CLEARANCE_CAP + CLEARANCE_CAP:
+                    return k
+                continue
+            for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
+                if G[p, k] + G[p, k + 1] < X[o.xpreach + p] * dt:
+                    return k
+    return K - 1
+
+
 @njit(cache=True)
 def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
     """``out[b]`` = validity of configuration ``Q[b]`` (B, dof), LANES at a time."""
@@ -329,7 +446,7 @@ def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
     qv = np.empty((o.dof, K))
     sn, cs = np.zeros((o.J, K)), np.zeros((o.J, K))
     W = np.empty((o.J, 12, K))
-    C, LC = np.empty((o.S, 3, K)), np.empty((o.L, 3, K))
+    C, LC, V = np.empty((o.S, 3, K)), np.empty((o.L, 3, K)), np.empty((o.S, K))
     bad, open_, near = np.empty(K, np.bool_), np.empty(K, np.bool_), np.empty(K, np.bool_)
     S = Scratch(np.empty(K, np.int64), np.empty(K, np.int64), np.empty(K), np.empty(K),
                 np.empty(K), np.empty(K, np.bool_))  # fmt: skip
@@ -344,16 +461,7 @@ def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
         _angles(I, o, qv, sn, cs, n)
         _place_joints(I, F, o, qv, sn, cs, W, n)
         _place_spheres(I, F, o, W, C, LC, n)
-        for lk in range(o.L):
-            if not I[o.lworld + lk]:
-                continue
-            if is_cloud_lattice(field):
-                for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
-                    s = I[o.lsph + i]
-                    if I[o.sworld + s]:
-                        _cloud_hits(F, field, o, C[s], F[o.wradii + s], margin, bad, S, n)
-            else:
-                _primitive_hits(I, F, o, lk, C, LC, margin, bad, near, n)
+        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, S, n)
         _self_hits(I, F, o, C, LC, bad, open_, near, n)
         for k in range(n):
             out[b0 + k] = not bad[k]

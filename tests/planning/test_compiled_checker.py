@@ -11,7 +11,7 @@ import pytest
 from gaide_core.errors import ConfigError, PlanningError, RobotModelError
 from gaide_core.transforms import from_xyz_rpy
 from planning.checker import make_checker
-from planning.collision import SphereCollisionChecker
+from planning.collision import DENSE_MIN_STEPS, DENSE_SAMPLES, SphereCollisionChecker
 from planning.compiled.checker import CompiledChecker
 from planning.compiled.layout import BLOCK
 from planning.compiled.tables import block_minima
@@ -253,6 +253,66 @@ def test_a_world_raise_agrees_exactly_and_keeps_each_sphere_its_own_clearance(
     if kind == "cloud":
         with pytest.raises(PlanningError, match="exact only up to"):
             fast.with_world_raise(np.full(len(raise_), 1.0))
+
+
+def test_the_dense_certificate_proves_what_it_claims(
+    worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
+) -> None:
+    # Long edges from near the obstacles: some certified by the dense certificate alone,
+    # some refused by one of its samples, some walked on from where its bound fails. The
+    # compiled checker answers as the reference, and every edge the certificate passes keeps
+    # the margin at a tenth of the resolution.
+    world = worlds["primitives"]
+    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
+    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    rng = np.random.default_rng(8)
+    starts = _near(ref, rng, 4000)
+    starts = starts[ref.config_valid(starts)][:300]
+    scale = np.repeat([0.25, 0.8, 0.5], 100)[:, None]
+    ends = np.clip(starts + rng.normal(size=starts.shape) * scale, robot.lower, robot.upper)
+    # and long edges through configurations 6-20 mm from the obstacles
+    near = _near(ref, rng, 3000)
+    clearance = ref.world_clearance(near)
+    graze = near[(clearance > 0.006) & (clearance < 0.02) & ref.config_valid(near)][:150]
+    way = rng.normal(size=graze.shape)
+    way /= np.linalg.norm(way, axis=1, keepdims=True)
+    before = np.clip(graze - way, robot.lower, robot.upper)
+    after = np.clip(graze + way, robot.lower, robot.upper)
+    ends_valid = ref.config_valid(before) & ref.config_valid(after)
+    starts = np.concatenate([starts, before[ends_valid]])
+    ends = np.concatenate([ends, after[ends_valid]])
+    steps = ref.edge_steps(starts, ends)
+    long = steps >= DENSE_MIN_STEPS
+    prefix = np.array(
+        [
+            ref._dense_prefix(a, b, *_reaches(ref, a, b)) if n >= DENSE_MIN_STEPS else -2
+            for a, b, n in zip(starts, ends, steps, strict=True)
+        ]
+    )
+    assert (prefix == DENSE_SAMPLES - 1).sum() >= 10, "edges the certificate passes"
+    assert (prefix == -1).sum() >= 10, "edges one of its samples refuses"
+    assert ((prefix >= 0) & (prefix < DENSE_SAMPLES - 1)).sum() >= 4, "edges walked on"
+    assert (~long).sum() >= 10, "short edges, walked from the start"
+    expected = ref.edges_valid(starts, ends)
+    np.testing.assert_array_equal(fast.edges_valid(starts, ends), expected)
+    assert not expected[prefix == -1].any()
+    assert expected[prefix == DENSE_SAMPLES - 1].all()
+    fine = SphereCollisionChecker(
+        robot,
+        spheres,
+        world,
+        resolution=robot.config.edge_resolution / 10,  # type: ignore[arg-type]
+    )
+    passed = prefix == DENSE_SAMPLES - 1
+    assert fine.edges_valid_sampled(starts[passed], ends[passed]).all()
+
+
+def _reaches(
+    ref: SphereCollisionChecker, a: np.ndarray, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sphere and self-pair reach (m) over the edge a -> b, as the walk computes them."""
+    motion = np.abs(b - a)
+    return (motion * ref._displacement).sum(axis=1), (motion * ref._pair_displacement).sum(axis=1)
 
 
 @pytest.mark.parametrize("kind", ["primitives", "cloud"])
