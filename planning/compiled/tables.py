@@ -114,9 +114,10 @@ def block_minima(field: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
     """The smallest value of each BLOCK^3 block of a cloud's lattice (nx, ny, nz), blocks
     in row-major order, flattened: the kernels find them after the lattice itself.
 
-    A point whose nearest lattice value lies in block b is at least ``minima[b]`` minus the
-    way to that value from the cloud, so one look-up in this small array (~1/500 of the
-    lattice: it stays in cache) clears most spheres without reading the large lattice."""
+    For a point whose nearest lattice point lies in block b, ``minima[b]`` minus the point's
+    way to that lattice point is at most the lattice's lower bound of its distance to the
+    cloud, so one look-up in this small array (1/512 of the lattice: it stays in cache)
+    clears most spheres without reading the large lattice."""
     shape = np.array(field.shape)
     blocks = -(-shape // BLOCK)
     padded = np.full(blocks * BLOCK, np.inf, np.float32)
