@@ -10,9 +10,9 @@ the iterations are split between calls).
 Iteration i (counted from the run's start, ``it0 + i``) extends tree ``(it0 + i) % 2``
 toward a uniform sample by at most ``step`` rad (joint space, Euclidean) and then greedily
 connects the other tree to the new node, as Kuffner and LaValle's RRT-Connect. A move is
-taken when its end configuration is valid, its points at 1/2, 1/4, 3/4 (and finer on
-long moves) pass :func:`~planning.compiled.validity.edge_screen` (a blocked move is then
-refused for a few configuration checks) and the edge is certified. Nearest neighbours are
+taken when its end configuration is valid, its points at 1/2, 1/4 and 3/4 pass
+:func:`~planning.compiled.validity.edge_screen` (a blocked move is then refused for a few
+configuration checks) and the edge is certified. Nearest neighbours are
 found by brute force: trees stay small (hundreds to a few thousand nodes) and a scan of
 contiguous rows beats a k-d tree's bookkeeping at that size.
 """
@@ -26,7 +26,7 @@ from numba import njit
 
 from gaide_core.types import FloatArray, IntArray
 from planning.compiled.layout import Field, Off, offsets
-from planning.compiled.validity import SCREEN_POINTS, config_ok, edge_ok, edge_screen
+from planning.compiled.validity import config_ok, edge_ok, edge_screen
 
 RUNNING = 0
 JOINED = 1
@@ -81,7 +81,7 @@ def _valid_move(
         return False
     for j in range(o.dof):
         a[j] = nodes[tree, k, j]
-    if not edge_screen(I, F, field, X, o, a, q, margin, resolution, SCREEN_POINTS):
+    if not edge_screen(I, F, field, X, o, a, q, margin):
         return False
     return edge_ok(I, F, field, X, o, a, q, margin, resolution)
 
@@ -148,13 +148,12 @@ def grow(I, F, field, nodes, parents, sizes, u, it0, margin, resolution, step, o
 
 @njit(cache=True)
 def straight_ok(I, F, field, q0, q1, margin, resolution):  # type: ignore[no-untyped-def]
-    """Is the edge q0 -> q1 (dof,) certified? Screened at 1/2, 1/4 and 3/4 first: a blocked
-    straight edge between a problem's ends is then refused for three configuration checks
-    instead of a certification creeping along an obstacle (measured on the task families:
-    0.02-0.9 ms), while a free one pays ~2 us more, where the planners' finer screen would
-    cost 30-70 us."""
+    """Is the edge q0 -> q1 (dof,) certified? Screened first, as the planners' moves
+    (:func:`~planning.compiled.validity.edge_screen`): a blocked straight edge between a
+    problem's ends is then refused for three configuration checks, while a free one pays
+    ~2 us more."""
     o = offsets(I)
     X = np.empty(o.xsize)
-    if not edge_screen(I, F, field, X, o, q0, q1, margin, resolution, 3):
+    if not edge_screen(I, F, field, X, o, q0, q1, margin):
         return False
     return edge_ok(I, F, field, X, o, q0, q1, margin, resolution)

@@ -22,7 +22,7 @@ from numba import njit
 
 from gaide_core.types import FloatArray, IntArray
 from planning.compiled.layout import Field, Off, offsets
-from planning.compiled.validity import SCREEN_POINTS, edge_ok, edge_screen
+from planning.compiled.validity import edge_ok, edge_screen
 
 
 @njit(cache=True, inline="always")
@@ -39,7 +39,7 @@ def _edge(
     I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off, a: FloatArray,
     b: FloatArray, margin: float, resolution: float,
 ) -> bool:  # fmt: skip
-    if not edge_screen(I, F, field, X, o, a, b, margin, resolution, SCREEN_POINTS):
+    if not edge_screen(I, F, field, X, o, a, b, margin):
         return False
     return edge_ok(I, F, field, X, o, a, b, margin, resolution)
 
