@@ -59,10 +59,17 @@ LANES = 64
 
 _sincos = njit(cache=True, inline="always")(sincos)
 
-# A cloud look-up's per-lane values (_cloud_hits): nearest value's index, its block's, the
+# A cloud look-up's per-lane values (_cloud_values): nearest value's index, its block's, the
 # way to it, the block's minimum, the value, and whether it is read.
 Scratch = namedtuple("Scratch", ["cell", "block", "way", "low", "fine", "look"])
 Vec3 = tuple[float, float, float]
+
+
+@njit(cache=True, inline="always")
+def _scratch(K: int) -> Scratch:
+    """A cloud look-up's per-lane values for K lanes."""
+    return Scratch(np.empty(K, np.int64), np.empty(K, np.int64), np.empty(K), np.empty(K),
+                   np.empty(K), np.empty(K, np.bool_))  # fmt: skip
 
 
 @njit(cache=True, inline="always")
@@ -408,8 +415,7 @@ def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off
     C, LC = np.empty((o.S, 3, K)), np.empty((o.L, 3, K))
     V, G = np.empty((o.S, K)), np.empty((o.P, K))
     bad, need, capped = np.zeros(K, np.bool_), np.empty(K, np.bool_), np.empty(o.G, np.bool_)
-    S = Scratch(np.empty(K, np.int64), np.empty(K, np.int64), np.empty(K), np.empty(K),
-                np.empty(K), np.empty(K, np.bool_))  # fmt: skip
+    S = _scratch(K)
     t = np.empty(K)
     for k in range(K):
         t[k] = k / (K - 1)
@@ -453,8 +459,7 @@ def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
     W = np.empty((o.J, 12, K))
     C, LC, V = np.empty((o.S, 3, K)), np.empty((o.L, 3, K)), np.empty((o.S, K))
     bad, open_, near = np.empty(K, np.bool_), np.empty(K, np.bool_), np.empty(K, np.bool_)
-    S = Scratch(np.empty(K, np.int64), np.empty(K, np.int64), np.empty(K), np.empty(K),
-                np.empty(K), np.empty(K, np.bool_))  # fmt: skip
+    S = _scratch(K)
     for b0 in range(0, Q.shape[0], K):
         n = min(K, Q.shape[0] - b0)
         bad[:] = False
