@@ -35,8 +35,8 @@ above with dt = t_b - t_a. That proves the same (the same Lipschitz argument, in
 interval), and holds for most long edges clear of the obstacles, where the walk's jumps
 stay short because every clearance above :data:`CLEARANCE_CAP` counts as the cap. A dense
 sample that is invalid refuses the edge (no certificate can pass a point below the margin);
-a run of intervals where the bound fails, from sample k to sample j, is walked from the one
-to the other, and the edge is certified when every such walk is.
+an interval between samples k and k + 1 where the bound fails is walked from sample k to
+sample k + 1, and the edge is certified when every such walk is.
 
 :class:`~planning.compiled.checker.CompiledChecker` runs the same algorithms in compiled code
 and is the default everywhere; this class is the reference the tests compare it with.
@@ -487,8 +487,8 @@ class SphereCollisionChecker:
     def _certified(self, q0: Array, q1: Array, n: int) -> bool:
         """Does the edge q0 -> q1, of n resolution steps, pass conservative advancement
         (module docstring)? A long edge: its dense samples all valid, and each interval
-        between two of them certified by the two-sample bound or else walked (a run of such
-        intervals in one walk); a short one: walked whole."""
+        between two of them certified by the two-sample bound or else walked; a short one:
+        walked whole."""
         reach = (np.abs(q1 - q0) * self._displacement).sum(axis=1)  # (S,) m over the edge
         pair_reach = (np.abs(q1 - q0) * self._pair_displacement).sum(axis=1)  # (P,) m
         if n < DENSE_MIN_STEPS:
@@ -497,18 +497,10 @@ class SphereCollisionChecker:
         if holds is None:
             return False
         t = np.arange(DENSE_SAMPLES) / (DENSE_SAMPLES - 1)
-        k = 0
-        while k < DENSE_SAMPLES - 1:  # walk each run of intervals the bound leaves, whole
-            if holds[k]:
-                k += 1
-                continue
-            j = k + 1
-            while j < DENSE_SAMPLES - 1 and not holds[j]:
-                j += 1
-            if not self._walk(q0, q1, n, reach, pair_reach, t[k], t[j]):
-                return False
-            k = j
-        return True
+        return all(
+            holds[k] or self._walk(q0, q1, n, reach, pair_reach, t[k], t[k + 1])
+            for k in range(DENSE_SAMPLES - 1)
+        )
 
     def _walk(
         self,

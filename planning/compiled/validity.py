@@ -11,7 +11,7 @@ An edge is certified by conservative advancement along it (see :mod:`planning.co
 jumps as long as every sphere's clearance allows, resolution steps with the two-sample bound
 where it does not, every sample valid, stopping at the first failure. A long edge is first
 offered the dense certificate, its samples checked together
-(:func:`~planning.compiled.lanes.dense_runs`), and only the intervals between them that
+(:func:`~planning.compiled.lanes.dense_values`), and only the intervals between them that
 its bound does not certify are walked. The reference's coarse pre-pass (every 8th resolution sample) is left out here: it
 never changes the answer, and with the jumps it cost more than it saved (measured on the
 benchmark workcell: 17.8k vs 20.3k edges/s with primitives, 14.7k vs 17.6k with the
@@ -39,7 +39,7 @@ from planning.compiled.geometry import (
     place_links_of_joint,
     place_root,
 )
-from planning.compiled.lanes import dense_runs
+from planning.compiled.lanes import dense_interval_holds, dense_scratch, dense_values
 from planning.compiled.layout import Field, Off, offsets
 
 # The planners' screen (edge_screen): the configurations at these fractions of an edge.
@@ -273,19 +273,16 @@ def edge_ok(
 ) -> bool:
     """Is the straight edge q0 -> q1 (dof,) certified (module docstring)? A long edge: its
     dense samples all valid, and each interval between two of them certified by the
-    two-sample bound or else walked (a run of such intervals in one walk); a short one:
-    walked whole."""
+    two-sample bound or else walked; a short one: walked whole."""
     n = edge_steps(I, F, X, o, q0, q1, resolution)
     if n < DENSE_MIN_STEPS:
         return _walk(I, F, field, X, o, q0, q1, margin, n, 0.0, 1.0)
-    runs = np.empty(DENSE_SAMPLES, np.int64)
-    r = dense_runs(I, F, field, X, o, q0, q1, margin, runs)
-    if r < 0:
+    D = dense_scratch(o)
+    if not dense_values(I, F, field, o, q0, q1, margin, D):
         return False
-    last = DENSE_SAMPLES - 1
-    for i in range(r):  # walk each run of intervals the bound leaves, whole
-        if not _walk(I, F, field, X, o, q0, q1, margin, n, runs[2 * i] / last,
-                     runs[2 * i + 1] / last):  # fmt: skip
+    for k in range(DENSE_SAMPLES - 1):
+        holds = dense_interval_holds(I, X, o, margin, D, k)
+        if not holds and not _walk(I, F, field, X, o, q0, q1, margin, n, D.t[k], D.t[k + 1]):
             return False
     return True
 
