@@ -35,8 +35,8 @@ above with dt = t_b - t_a. That proves the same (the same Lipschitz argument, in
 interval), and holds for most long edges clear of the obstacles, where the walk's jumps
 stay short because every clearance above :data:`CLEARANCE_CAP` counts as the cap. A dense
 sample that is invalid refuses the edge (no certificate can pass a point below the margin);
-an interval between samples k and k + 1 where the bound fails is walked from sample k to
-sample k + 1, and the edge is certified when every such walk is.
+otherwise, where the bound fails between samples k and k + 1, the walk certifies the rest of
+the edge from sample k.
 
 :class:`~planning.compiled.checker.CompiledChecker` runs the same algorithms in compiled code
 and is the default everywhere; this class is the reference the tests compare it with.
@@ -486,58 +486,37 @@ class SphereCollisionChecker:
 
     def _certified(self, q0: Array, q1: Array, n: int) -> bool:
         """Does the edge q0 -> q1, of n resolution steps, pass conservative advancement
-        (module docstring)? A long edge: its dense samples all valid, and each interval
-        between two of them certified by the two-sample bound or else walked; a short one:
-        walked whole."""
+        (module docstring)? One sample at a time, every sphere and pair exact."""
         reach = (np.abs(q1 - q0) * self._displacement).sum(axis=1)  # (S,) m over the edge
-        pair_reach = (np.abs(q1 - q0) * self._pair_displacement).sum(axis=1)  # (P,) m
-        if n < DENSE_MIN_STEPS:
-            return self._walk(q0, q1, n, reach, pair_reach, 0.0, 1.0)
-        holds = self._dense_intervals(q0, q1, reach, pair_reach)
-        if holds is None:
-            return False
-        t = np.arange(DENSE_SAMPLES) / (DENSE_SAMPLES - 1)
-        return all(
-            holds[k] or self._walk(q0, q1, n, reach, pair_reach, t[k], t[k + 1])
-            for k in range(DENSE_SAMPLES - 1)
-        )
-
-    def _walk(
-        self,
-        q0: Array,
-        q1: Array,
-        n: int,
-        reach: Array,
-        pair_reach: Array,
-        start: float,
-        end: float,
-    ) -> bool:
-        """Conservative advancement along the edge q0 -> q1 of n resolution steps, from the
-        fraction ``start`` of it to ``end``, one sample at a time, every sphere and pair
-        exact; ``reach`` (S,) and ``pair_reach`` (P,) are the edge's (m)."""
         ws = self.world_spheres[reach[self.world_spheres] > 0]
+        pair_reach = (np.abs(q1 - q0) * self._pair_displacement).sum(axis=1)  # (P,) m
         moving = pair_reach > 0
+        t = 0.0
+        if n >= DENSE_MIN_STEPS:
+            k = self._dense_prefix(q0, q1, reach, pair_reach)
+            if k < 0 or k == DENSE_SAMPLES - 1:
+                return k >= 0
+            t = k / (DENSE_SAMPLES - 1)  # certified up to here: the walk goes on from it
         step = 1.0 / n
         smallest = step / MIN_STEP_DIVISOR
-        t = float(start)
         values = self._sample_values(q0, q1, t)
         if values is None:
             return False
-        while t < end:
+        while t < 1.0:
             v, g = values
             f = min(
                 np.min((v[ws] - self.margin) / reach[ws], initial=np.inf),
                 np.min(g[moving] / pair_reach[moving], initial=np.inf),
             )
             if f >= step:  # a jump: nothing can lose its margin before t + f
-                t_next = min(t + f, end)
+                t_next = min(t + f, 1.0)
                 values = self._sample_values(q0, q1, t_next)
                 if values is None:
                     return False
             else:  # a step the two-sample bound must certify, else the jump f
                 if 2.0 * f < smallest:
                     return False
-                t_next = min(t + min(step, 2.0 * f), end)
+                t_next = min(t + min(step, 2.0 * f), 1.0)
                 values = self._sample_values(q0, q1, t_next)
                 if values is None:
                     return False
@@ -549,40 +528,40 @@ class SphereCollisionChecker:
                 ):
                     if f < smallest:
                         return False
-                    t_next = min(t + f, end)
+                    t_next = min(t + f, 1.0)
                     values = self._sample_values(q0, q1, t_next)
                     if values is None:
                         return False
             t = t_next
         return True
 
-    def _dense_intervals(
-        self, q0: Array, q1: Array, reach: Array, pair_reach: Array
-    ) -> npt.NDArray[np.bool_] | None:
-        """The dense certificate's samples of the edge q0 -> q1 (module docstring) as one
-        batch: None if one of them is invalid, else (DENSE_SAMPLES - 1,) True where samples
-        k and k + 1 satisfy the two-sample bound. ``reach`` (S,) and ``pair_reach`` (P,)
-        are the edge's (m)."""
+    def _dense_prefix(self, q0: Array, q1: Array, reach: Array, pair_reach: Array) -> int:
+        """The dense certificate of the edge q0 -> q1 (module docstring), its samples as one
+        batch: -1 if one of them is invalid, else the first k whose samples k and k + 1
+        fail the two-sample bound (DENSE_SAMPLES - 1 if none). ``reach`` (S,) and
+        ``pair_reach`` (P,) are the edge's (m)."""
         t = np.arange(DENSE_SAMPLES) / (DENSE_SAMPLES - 1)
         Q = q0 + t[:, None] * (q1 - q0)
         if not np.all(self.robot.within_limits(Q)):
-            return None
+            return -1
         centres = self.sphere_centers(Q)  # (K, S, 3)
         ws = self.world_spheres
         v = self.world.distance(centres[:, ws].reshape(-1, 3)).reshape(len(t), -1)
         v = np.minimum(v - self.world_radii[ws], CLEARANCE_CAP)
         if np.any(v < self.margin):
-            return None
+            return -1
         diff = centres[:, self.pairs[:, 0]] - centres[:, self.pairs[:, 1]]
         g = np.sqrt(np.einsum("kpi,kpi->kp", diff, diff)) - (
             self.radii[self.pairs[:, 0]] + self.radii[self.pairs[:, 1]]
         )
         if np.any(g < 0.0):
-            return None
+            return -1
         g = np.minimum(g, CLEARANCE_CAP)
         dt = (t[1:] - t[:-1])[:, None]
-        world = np.all(v[:-1] + v[1:] >= 2.0 * self.margin + reach[ws] * dt, axis=1)
-        return world & np.all(g[:-1] + g[1:] >= pair_reach * dt, axis=1)
+        holds = np.all(v[:-1] + v[1:] >= 2.0 * self.margin + reach[ws] * dt, axis=1) & np.all(
+            g[:-1] + g[1:] >= pair_reach * dt, axis=1
+        )
+        return int(np.argmin(holds)) if not holds.all() else DENSE_SAMPLES - 1
 
     def _sample_values(self, q0: Array, q1: Array, t: float) -> tuple[Array, Array] | None:
         """Capped clearances (S,) (+cap for spheres the world ignores) and gaps (P,) (m) at

@@ -17,7 +17,7 @@ arithmetic and look-ups that vectorize. Measured on the UR5, 10,000 uniform conf
 scalar loop and the lanes run back to back): 1.2 -> 2.7-2.9M configurations/s against 20
 primitives, 2.2 -> 4.0-4.6M against a 50,000-point cloud, 2.0 -> 9.0M in the empty world.
 
-:func:`dense_values` puts the same steps to a second use: a long edge's evenly spaced
+:func:`dense_prefix` puts the same steps to a second use: a long edge's evenly spaced
 samples, one per lane, with their capped clearances and self-pair gaps, for the dense
 certificate of :mod:`planning.collision` (the walk takes its samples one after the other,
 each placed by the last; these are placed in advance, so they can go together).
@@ -400,74 +400,53 @@ def _self_values(I: IntArray, F: FloatArray, o: Off, C: FloatArray, LC: FloatArr
                 Gp[k] = min(Gp[k], cap)
 
 
-# The dense certificate's samples (dense_values): their configurations, sines and cosines,
-# joint poses, sphere and link centres, capped clearances V (S, K) and gaps G (P, K), the
-# groups all of whose gaps are the cap, masks, the cloud scratch, and their fractions t.
-Dense = namedtuple(
-    "Dense", ["qv", "sn", "cs", "W", "C", "LC", "V", "G", "capped", "bad", "need", "S", "t"]
-)
-
-
 @njit(cache=True)
-def dense_scratch(o: Off) -> Dense:
-    """Arrays for the dense certificate's DENSE_SAMPLES samples."""
+def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
+                 q0: FloatArray, q1: FloatArray, margin: float) -> int:  # fmt: skip
+    """The dense certificate of the edge q0 -> q1 (:mod:`planning.collision`), its
+    DENSE_SAMPLES evenly spaced configurations one per lane: -1 if one of them is invalid,
+    else the first k whose samples k and k + 1 fail the two-sample bound (DENSE_SAMPLES - 1
+    if none: the edge is certified). The reach of every sphere and pair over the edge is in
+    ``X`` (by :func:`~planning.compiled.validity.edge_steps`)."""
     K = DENSE_SAMPLES
+    qv = np.empty((o.dof, K))
+    sn, cs = np.zeros((o.J, K)), np.zeros((o.J, K))
+    W = np.empty((o.J, 12, K))
+    C, LC = np.empty((o.S, 3, K)), np.empty((o.L, 3, K))
+    V, G = np.empty((o.S, K)), np.empty((o.P, K))
+    bad, need, capped = np.zeros(K, np.bool_), np.empty(K, np.bool_), np.empty(o.G, np.bool_)
+    S = _scratch(K)
     t = np.empty(K)
     for k in range(K):
         t[k] = k / (K - 1)
-    return Dense(
-        np.empty((o.dof, K)), np.zeros((o.J, K)), np.zeros((o.J, K)), np.empty((o.J, 12, K)),
-        np.empty((o.S, 3, K)), np.empty((o.L, 3, K)), np.empty((o.S, K)), np.empty((o.P, K)),
-        np.empty(o.G, np.bool_), np.zeros(K, np.bool_), np.empty(K, np.bool_), _scratch(K), t,
-    )  # fmt: skip
-
-
-@njit(cache=True)
-def dense_values(I: IntArray, F: FloatArray, field: Field, o: Off, q0: FloatArray,
-                 q1: FloatArray, margin: float, D: Dense) -> bool:  # fmt: skip
-    """The dense certificate's samples of the edge q0 -> q1 (:mod:`planning.collision`), one
-    per lane, at the fractions ``D.t``: their capped clearances and gaps into ``D``; False
-    if one of them is invalid."""
-    K = DENSE_SAMPLES
-    bad = D.bad
-    bad[:] = False
     for j in range(o.dof):
-        lo, hi, v, a, d = F[o.lower + j], F[o.upper + j], D.qv[j], q0[j], q1[j] - q0[j]
+        lo, hi, v, a, d = F[o.lower + j], F[o.upper + j], qv[j], q0[j], q1[j] - q0[j]
         for k in range(K):
-            v[k] = a + D.t[k] * d
+            v[k] = a + t[k] * d
             bad[k] |= not ((lo <= v[k]) & (v[k] <= hi))
-    _angles(I, o, D.qv, D.sn, D.cs, K)
-    _place_joints(I, F, o, D.qv, D.sn, D.cs, D.W, K)
-    _place_spheres(I, F, o, D.W, D.C, D.LC, K)
-    _world_values(I, F, field, o, D.C, D.LC, CLEARANCE_CAP, margin, D.V, bad, D.need, D.S, K)
-    _self_values(I, F, o, D.C, D.LC, CLEARANCE_CAP, D.G, D.capped, bad, K)
+    _angles(I, o, qv, sn, cs, K)
+    _place_joints(I, F, o, qv, sn, cs, W, K)
+    _place_spheres(I, F, o, W, C, LC, K)
+    _world_values(I, F, field, o, C, LC, CLEARANCE_CAP, margin, V, bad, need, S, K)
+    _self_values(I, F, o, C, LC, CLEARANCE_CAP, G, capped, bad, K)
     for k in range(K):
         if bad[k]:
-            return False
-    return True
-
-
-@njit(cache=True)
-def dense_interval_holds(I: IntArray, X: FloatArray, o: Off, margin: float, D: Dense,
-                         k: int) -> bool:  # fmt: skip
-    """Do samples k and k + 1 of ``D`` satisfy the two-sample bound? (The reach of every
-    sphere and pair over the edge is in ``X``, by
-    :func:`~planning.compiled.validity.edge_steps`.)"""
-    dt = D.t[k + 1] - D.t[k]
-    V, G = D.V, D.G
-    for s in range(o.S):
-        bound = 2.0 * margin + X[o.xreach + s] * dt
-        if I[o.sworld + s] and V[s, k] + V[s, k + 1] < bound:
-            return False
-    for g in range(o.G):
-        if D.capped[g]:  # every gap the cap: the largest reach decides (rounding is monotonic)
-            if X[o.xgreach + g] * dt > CLEARANCE_CAP + CLEARANCE_CAP:
-                return False
-            continue
-        for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
-            if G[p, k] + G[p, k + 1] < X[o.xpreach + p] * dt:
-                return False
-    return True
+            return -1
+    for k in range(K - 1):
+        dt = t[k + 1] - t[k]
+        for s in range(o.S):
+            bound = 2.0 * margin + X[o.xreach + s] * dt
+            if I[o.sworld + s] and V[s, k] + V[s, k + 1] < bound:
+                return k
+        for g in range(o.G):
+            if capped[g]:  # every gap the cap: the largest reach decides (rounding is monotonic)
+                if X[o.xgreach + g] * dt > CLEARANCE_CAP + CLEARANCE_CAP:
+                    return k
+                continue
+            for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
+                if G[p, k] + G[p, k + 1] < X[o.xpreach + p] * dt:
+                    return k
+    return K - 1
 
 
 @njit(cache=True)

@@ -11,7 +11,7 @@ import pytest
 from gaide_core.errors import ConfigError, PlanningError, RobotModelError
 from gaide_core.transforms import from_xyz_rpy
 from planning.checker import make_checker
-from planning.collision import DENSE_MIN_STEPS, SphereCollisionChecker
+from planning.collision import DENSE_MIN_STEPS, DENSE_SAMPLES, SphereCollisionChecker
 from planning.compiled.checker import CompiledChecker
 from planning.compiled.layout import BLOCK
 from planning.compiled.tables import block_minima
@@ -242,9 +242,9 @@ def test_the_dense_certificate_proves_what_it_claims(
     worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
 ) -> None:
     # Long edges from near the obstacles: some certified by the dense certificate alone,
-    # some refused by one of its samples, some with intervals its bound leaves to the walk.
-    # The compiled checker answers as the reference, and every long edge certified keeps the
-    # margin at a tenth of the resolution.
+    # some refused by one of its samples, some walked on from where its bound fails. The
+    # compiled checker answers as the reference, and every edge the certificate passes keeps
+    # the margin at a tenth of the resolution.
     world = worlds["primitives"]
     ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
     fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
@@ -266,29 +266,27 @@ def test_the_dense_certificate_proves_what_it_claims(
     ends = np.concatenate([ends, after[ends_valid]])
     steps = ref.edge_steps(starts, ends)
     long = steps >= DENSE_MIN_STEPS
-    # per edge: -2 short (walked whole), -1 refused by a sample, else how many of its
-    # intervals the bound leaves to the walk
-    outcome = []
-    for a, b, n in zip(starts, ends, steps, strict=True):
-        holds = ref._dense_intervals(a, b, *_reaches(ref, a, b)) if n >= DENSE_MIN_STEPS else None
-        outcome.append(-2 if n < DENSE_MIN_STEPS else -1 if holds is None else (~holds).sum())
-    walked = np.array(outcome)
-    assert (walked == 0).sum() >= 10, "edges the certificate passes alone"
-    assert (walked == -1).sum() >= 10, "edges one of its samples refuses"
-    assert (walked > 0).sum() >= 4, "edges with intervals walked"
-    assert (~long).sum() >= 10, "short edges, walked whole"
+    prefix = np.array(
+        [
+            ref._dense_prefix(a, b, *_reaches(ref, a, b)) if n >= DENSE_MIN_STEPS else -2
+            for a, b, n in zip(starts, ends, steps, strict=True)
+        ]
+    )
+    assert (prefix == DENSE_SAMPLES - 1).sum() >= 10, "edges the certificate passes"
+    assert (prefix == -1).sum() >= 10, "edges one of its samples refuses"
+    assert ((prefix >= 0) & (prefix < DENSE_SAMPLES - 1)).sum() >= 4, "edges walked on"
+    assert (~long).sum() >= 10, "short edges, walked from the start"
     expected = ref.edges_valid(starts, ends)
     np.testing.assert_array_equal(fast.edges_valid(starts, ends), expected)
-    assert not expected[walked == -1].any()
-    assert expected[walked == 0].all()
-    assert 0 < expected[walked > 0].sum() < (walked > 0).sum(), "walks that pass and fail"
+    assert not expected[prefix == -1].any()
+    assert expected[prefix == DENSE_SAMPLES - 1].all()
     fine = SphereCollisionChecker(
         robot,
         spheres,
         world,
         resolution=robot.config.edge_resolution / 10,  # type: ignore[arg-type]
     )
-    passed = expected & long
+    passed = prefix == DENSE_SAMPLES - 1
     assert fine.edges_valid_sampled(starts[passed], ends[passed]).all()
 
 
