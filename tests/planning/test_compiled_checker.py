@@ -54,6 +54,15 @@ def _near(checker: SphereCollisionChecker, rng: np.random.Generator, n: int) -> 
     return np.concatenate(out)[:n]
 
 
+def _valid_near(
+    checker: SphereCollisionChecker, rng: np.random.Generator, candidates: int, n: int
+) -> np.ndarray:
+    """The valid ones among ``candidates`` configurations near the world (:func:`_near`),
+    at most n: starts of edges that graze the obstacles."""
+    starts = _near(checker, rng, candidates)
+    return starts[checker.config_valid(starts)][:n]
+
+
 @pytest.mark.parametrize("kind", ["empty", "primitives", "cloud"])
 def test_configurations_agree_exactly(
     kind: str, worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
@@ -153,8 +162,7 @@ def test_the_planners_screen_is_the_validity_of_its_points(
     ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
     fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
     rng = np.random.default_rng(4)
-    starts = _near(ref, rng, 2000)
-    starts = starts[ref.config_valid(starts)][:200]
+    starts = _valid_near(ref, rng, 2000, 200)
     ends = np.clip(starts + rng.normal(size=starts.shape) * 0.6, robot.lower, robot.upper)
     screened = np.empty(len(starts), bool)
     validity.edges_screened(*fast.tables.args(), starts, ends, fast.margin, screened)
@@ -180,8 +188,7 @@ def test_a_certified_edge_keeps_the_margin_at_every_point(
         resolution=robot.config.edge_resolution / 10,  # type: ignore[arg-type]
     )
     rng = np.random.default_rng(2)
-    starts = _near(fast, rng, 3000)
-    starts = starts[fast.config_valid(starts)][:120]
+    starts = _valid_near(fast, rng, 3000, 120)
     ends = np.clip(starts + rng.normal(size=starts.shape) * 0.3, robot.lower, robot.upper)
     ok = fast.edges_valid(starts, ends)
     assert ok.sum() >= 30
@@ -249,8 +256,7 @@ def test_the_dense_certificate_proves_what_it_claims(
     ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
     fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
     rng = np.random.default_rng(8)
-    starts = _near(ref, rng, 4000)
-    starts = starts[ref.config_valid(starts)][:300]
+    starts = _valid_near(ref, rng, 4000, 300)
     scale = np.repeat([0.25, 0.8, 0.5], 100)[:, None]
     ends = np.clip(starts + rng.normal(size=starts.shape) * scale, robot.lower, robot.upper)
     # and long edges through configurations 6-20 mm from the obstacles
