@@ -94,6 +94,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         ("--dec-layers", "decoder layers"),
         ("--scene-points", "scene points the set abstraction reads"),
         ("--scene-tokens", "scene tokens K_w"),
+        ("--modes", "steps the head proposes at once (relaxed winner-takes-all when > 1)"),
     ):
         sizes.add_argument(flag, type=int, help=help_text)
     tr.add_argument("--resume", action="store_true", help="continue from --out if it exists")
@@ -216,6 +217,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             "dec_layers",
             "scene_points",
             "scene_tokens",
+            "modes",
         )
         if getattr(args, k) is not None
     }

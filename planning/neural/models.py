@@ -3,7 +3,8 @@ masked) and GAIDE-H (always masked), and the baselines MPNet and SIMPNet with th
 embedding.
 
 Every model maps (robot cloud at q_t, scene tokens, q_t, q_goal) to a normalized step
-delta_q / ``cfg.step``; dropout stays active when sampling (it is the sampler's randomness).
+delta_q / ``cfg.step``, or with ``cfg.modes`` = K > 1 to K such steps (``(B, K * dof)``, see
+:func:`hypotheses`); dropout stays active when sampling (it is the sampler's randomness).
 Joint values enter scaled by 1/pi.
 
 Attention-mask convention (torch's): ``mask[i, j]`` is True where query token i may NOT attend
@@ -55,6 +56,10 @@ class ModelCfg:
     # them apart from the robot cloud alone; with the flag it need not (measured on the
     # shipped data: GAIDE's validation loss 0.065 -> 0.032 at the same 3,000 steps).
     joint_roles: bool = True
+    # Steps the head proposes at once. One step regresses toward the mean of the labels, which
+    # on a shelf can lie on the board between two routes of equal cost; K heads trained by
+    # relaxed winner-takes-all (:func:`step_loss`) can each keep one route.
+    modes: int = 1
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -62,7 +67,7 @@ class ModelCfg:
             "hidden": self.hidden, "heads": self.heads, "ff": self.ff,
             "enc_layers": self.enc_layers, "dec_layers": self.dec_layers,
             "scene_tokens": self.scene_tokens, "scene_nsample": self.scene_nsample,
-            "robot_nsample": self.robot_nsample,
+            "robot_nsample": self.robot_nsample, "modes": self.modes,
         }  # fmt: skip
         bad = [k for k, v in counts.items() if v < 1]
         if bad or self.hidden % self.heads or self.scene_points < self.scene_tokens:
@@ -79,6 +84,25 @@ class ModelCfg:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+# The share of the mean over all K hypotheses in :func:`step_loss` (relaxed winner-takes-all,
+# Rupprecht et al., ICCV 2017): with none, a hypothesis that never wins is never trained.
+WTA_RELAX = 0.05
+
+
+def hypotheses(pred: Tensor, modes: int) -> Tensor:
+    """A model's output (B, K * dof) as its K steps (B, K, dof)."""
+    return pred.reshape(len(pred), modes, -1)
+
+
+def step_loss(pred: Tensor, delta: Tensor, modes: int) -> Tensor:
+    """MSE of the step for one mode; for K modes, per pair the smallest of the K hypotheses'
+    errors, plus ``WTA_RELAX`` of their mean."""
+    if modes == 1:
+        return nn.functional.mse_loss(pred, delta)
+    err = ((hypotheses(pred, modes) - delta[:, None]) ** 2).mean(dim=-1)  # (B, K)
+    return ((1 - WTA_RELAX) * err.min(dim=1).values + WTA_RELAX * err.mean(dim=1)).mean()
 
 
 def _mlp(widths: list[int], dropout: float = 0.0) -> nn.Sequential:
@@ -186,7 +210,7 @@ class Gaide(nn.Module):
         )
         self.query = nn.Parameter(torch.randn(1, 1, h) * 0.02)
         self.norm = nn.LayerNorm(h)
-        self.head = nn.Linear(h, dof)
+        self.head = nn.Linear(h, dof * cfg.modes)
 
     def layer_masked(self, i: int) -> bool:
         return self.masking == "all" or (self.masking == "interleaved" and i % 2 == 0)
@@ -216,7 +240,7 @@ class MPNet(nn.Module):
         super().__init__()
         h = cfg.hidden
         self.backbone = _Backbone(cfg, embodiment, dof, robot_cloud=False)
-        self.mlp = _mlp([3 * h, 8 * h, 4 * h, 2 * h, dof], cfg.mlp_dropout)
+        self.mlp = _mlp([3 * h, 8 * h, 4 * h, 2 * h, dof * cfg.modes], cfg.mlp_dropout)
 
     def forward(self, robot: Tensor, scene_tokens: Tensor, q: Tensor, goal: Tensor) -> Tensor:
         b = self.backbone
@@ -247,7 +271,7 @@ class SimpNet(nn.Module):
         self.upd = nn.ModuleList(_mlp([2 * h, h, h]) for _ in range(cfg.enc_layers))
         self.norms = nn.ModuleList(nn.LayerNorm(h) for _ in range(cfg.enc_layers))
         self.drop = nn.Dropout(cfg.dropout)
-        self.head = _mlp([2 * h, 2 * h, dof], cfg.dropout)
+        self.head = _mlp([2 * h, 2 * h, dof * cfg.modes], cfg.dropout)
 
     def forward(self, robot: Tensor, scene_tokens: Tensor, q: Tensor, goal: Tensor) -> Tensor:
         b = self.backbone

@@ -14,7 +14,7 @@ from gaide_core.errors import ModelError, PerceptionError
 from gaide_core.types import Array
 from planning.neural.checkpoint import load_checkpoint
 from planning.neural.embodiment import RobotCloud
-from planning.neural.models import encode_scene
+from planning.neural.models import encode_scene, hypotheses
 from planning.robot_model import RobotModel
 
 # The scene cloud must lie around the robot, in the base frame: points further than this
@@ -38,7 +38,8 @@ class Sampler(Protocol):
 
 class NeuralSampler:
     """A checkpoint's model as a :class:`Sampler`. Proposals are ``q + delta`` with the step
-    clipped to the data's maximum step."""
+    clipped to the data's maximum step; a model of K modes gives each mode every K-th
+    rollout."""
 
     def __init__(
         self,
@@ -93,7 +94,10 @@ class NeuralSampler:
             self.device
         )
         with torch.no_grad():
-            delta = self.model(robot, scene, qt, gt).double().cpu().numpy() * self.step
+            pred = hypotheses(self.model(robot, scene, qt, gt), self.cfg.modes)
+        # rollout i takes mode i mod K: the modes share the rollouts evenly
+        delta = pred[torch.arange(n), torch.arange(n) % self.cfg.modes].double().cpu().numpy()
+        delta *= self.step
         norm = np.linalg.norm(delta, axis=1, keepdims=True)
         delta *= np.minimum(1.0, self.step / np.maximum(norm, 1e-12))
         return Q + delta

@@ -1,5 +1,5 @@
 """Training: MSE on the normalized step delta_q / step along the oracle paths (both
-directions), AdamW with warm-up and cosine decay, validation on held-out scenes, checkpoints
+directions; with several modes, relaxed winner-takes-all: :func:`~planning.neural.models.step_loss`), AdamW with warm-up and cosine decay, validation on held-out scenes, checkpoints
 and resume, CPU or CUDA (mixed precision there), reproducible from a seed.
 
 Under ``torchrun --nproc_per_node N`` the same code trains data-parallel
@@ -37,7 +37,7 @@ from planning.neural.checkpoint import (
 )
 from planning.neural.data import MANIFEST, PathSet, load_paths
 from planning.neural.embodiment import RobotCloud, build_embodiment
-from planning.neural.models import MODEL_KINDS, ModelCfg, build_model, encode_scene
+from planning.neural.models import MODEL_KINDS, ModelCfg, build_model, encode_scene, step_loss
 from planning.robot_model import RobotModel
 
 log = logging.getLogger(__name__)
@@ -232,7 +232,7 @@ class Trainer:
         net = self.forward if train else self.model
         with torch.autocast(self.device.type, enabled=self.amp):
             pred = net(robot, encode_scene(self.model, scene), q, goal)
-        return nn.functional.mse_loss(pred.float(), delta)
+        return step_loss(pred.float(), delta, self.model_cfg.modes)
 
     def validate(self, batches: int = 8) -> float:
         if self.val_pairs is None:

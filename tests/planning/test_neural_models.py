@@ -12,7 +12,15 @@ import torch
 from gaide_core.errors import ModelError
 from planning.neural.checkpoint import Checkpoint, load_checkpoint, robot_signature, save_checkpoint
 from planning.neural.embodiment import Embodiment, RobotCloud, build_embodiment
-from planning.neural.models import MODEL_KINDS, Gaide, ModelCfg, build_model, graph_mask
+from planning.neural.models import (
+    MODEL_KINDS,
+    WTA_RELAX,
+    Gaide,
+    ModelCfg,
+    build_model,
+    graph_mask,
+    step_loss,
+)
 from planning.neural.sampler import NeuralSampler
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
@@ -100,17 +108,18 @@ def test_a_masked_layer_only_passes_information_along_the_graph(
         assert torch.allclose(a[0, i], b[0, i], atol=1e-6) != should_change
 
 
+@pytest.mark.parametrize("modes", [1, 3])
 @pytest.mark.parametrize("kind", MODEL_KINDS)
 def test_every_model_maps_inputs_to_a_step_and_every_weight_learns(
-    kind: str, robot: RobotModel, embodiment: Embodiment
+    kind: str, modes: int, robot: RobotModel, embodiment: Embodiment
 ) -> None:
     torch.manual_seed(0)
-    model = build_model(kind, TINY, embodiment, robot.dof)
+    model = build_model(kind, ModelCfg(**{**TINY.to_dict(), "modes": modes}), embodiment, robot.dof)
     cloud, scene, q, goal = _inputs(robot, embodiment, 5)
     tokens = model.backbone.encode_scene(scene)
     assert tokens.shape == (1, TINY.scene_tokens, TINY.hidden)
     out = model(cloud, tokens, q, goal)
-    assert out.shape == (5, robot.dof) and torch.isfinite(out).all()
+    assert out.shape == (5, modes * robot.dof) and torch.isfinite(out).all()
     out.pow(2).sum().backward()
     dead = [n for n, p in model.named_parameters() if p.grad is None or not p.grad.abs().sum() > 0]
     assert not dead, f"parameters without gradient: {dead}"
@@ -167,6 +176,48 @@ def test_dropout_draws_different_samples_and_a_seed_repeats_them(
     assert np.linalg.norm(a - q, axis=1).max() <= sampler.step + 1e-9
 
 
+def test_the_step_loss_trains_the_nearest_of_several_hypotheses() -> None:
+    delta = torch.tensor([[1.0, 0.0], [0.0, 1.0]])
+    one = torch.tensor([[0.5, 0.0], [0.0, 0.0]])
+    assert torch.isclose(step_loss(one, delta, 1), torch.nn.functional.mse_loss(one, delta))
+    # two hypotheses per pair: pair 0's second is exact, pair 1's first is 0.5 off in one joint
+    two = torch.tensor([[3.0, 0.0, 1.0, 0.0], [0.0, 0.5, 0.0, -1.0]], requires_grad=True)
+    err = torch.tensor([[2.0, 0.0], [0.125, 2.0]])  # per pair and hypothesis, mean over joints
+    expected = ((1 - WTA_RELAX) * err.min(1).values + WTA_RELAX * err.mean(1)).mean()
+    loss = step_loss(two, delta, 2)
+    assert torch.isclose(loss, expected)
+    loss.backward()
+    assert two.grad is not None
+    # pair 1, joint 1: the winner (0.5 off) takes the pull, the loser (2 off) only the
+    # relaxation's share; d err / d x = (x - target) for a mean over 2 joints, 1/2 for the batch
+    r = WTA_RELAX
+    assert torch.isclose(two.grad[1, 1], torch.tensor((1 - r + r / 2) * -0.5 / 2))
+    assert torch.isclose(two.grad[1, 3], torch.tensor(r / 2 * -2.0 / 2))
+
+
+def test_each_mode_gets_every_kth_rollout(
+    robot: RobotModel, embodiment: Embodiment, tmp_path: Path
+) -> None:
+    cfg = ModelCfg(**{**TINY.to_dict(), "modes": 2, "dropout": 0.0})
+    torch.manual_seed(0)
+    model = build_model("gaide", cfg, embodiment, robot.dof)
+    path = tmp_path / "gaide2.pt"
+    save_checkpoint(
+        path,
+        Checkpoint(
+            kind="gaide", cfg=cfg, embodiment=embodiment, robot=robot_signature(robot),
+            state=model.state_dict(), card={},
+        ),
+    )  # fmt: skip
+    sampler = NeuralSampler(path, robot)
+    scene = sampler.scene(np.random.default_rng(3).uniform(-0.8, 0.8, (500, 3)))
+    q, goal = robot.named_configuration("home"), np.zeros(robot.dof)
+    a = sampler.sample(scene, q, goal, 6)
+    # no dropout: the rollouts are the two modes' steps, taken in turn
+    assert np.allclose(a[0::2], a[0]) and np.allclose(a[1::2], a[1])
+    assert np.linalg.norm(a[0] - a[1]) > 1e-4
+
+
 def test_a_checkpoint_round_trips_and_refuses_what_it_is_not(
     robot: RobotModel, embodiment: Embodiment, tmp_path: Path
 ) -> None:
@@ -209,7 +260,14 @@ def test_a_scene_cloud_outside_the_workspace_is_refused(
 
 
 @pytest.mark.parametrize(
-    "sizes", [{"hidden": 30, "heads": 4}, {"enc_layers": 0}, {"scene_points": 8}, {"dropout": 1.0}]
+    "sizes",
+    [
+        {"hidden": 30, "heads": 4},
+        {"enc_layers": 0},
+        {"scene_points": 8},
+        {"dropout": 1.0},
+        {"modes": 0},
+    ],
 )
 def test_model_sizes_out_of_range_are_refused(sizes: dict[str, float]) -> None:
     with pytest.raises(ModelError, match=r"model sizes|dropouts"):

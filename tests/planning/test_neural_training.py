@@ -141,7 +141,7 @@ def test_gaide_train_writes_a_checkpoint_with_its_card_and_resumes(
     out = tmp_path / "m.pt"
     args = ["train", "--model", "mpnet", "--data", str(data_dir), "--out", str(out)]
     sizes = ["--hidden", "16", "--heads", "2", "--ff", "32", "--enc-layers", "2"]
-    sizes += ["--scene-points", "128", "--scene-tokens", "4"]
+    sizes += ["--scene-points", "128", "--scene-tokens", "4", "--modes", "2"]
     first = run_cli(
         *args, *sizes, "--steps", "6", "--batch", "8", "--device", "cpu", "--threads", "1"
     )
@@ -150,12 +150,14 @@ def test_gaide_train_writes_a_checkpoint_with_its_card_and_resumes(
     assert card["model"] == "mpnet" and card["steps"] == 6 and card["device"].startswith("cpu")
     assert card["data_paths"] >= 3 and card["history"] and "sha256" in card
     assert card["model_cfg"]["hidden"] == 16 and card["model_cfg"]["scene_tokens"] == 4
+    assert card["model_cfg"]["modes"] == 2
     more = run_cli(
         *args, "--steps", "10", "--batch", "8", "--device", "cpu", "--threads", "1", "--resume"
     )
     assert more.returncode == 0, more.stderr
     card = json.loads((tmp_path / "m.pt.card.json").read_text())
     assert card["steps"] == 10 and card["model_cfg"]["hidden"] == 16  # resumed at its sizes
+    assert card["model_cfg"]["modes"] == 2
 
     bad = run_cli("train", "--model", "gaide", "--data", str(tmp_path), "--out", str(out))
     assert bad.returncode == ModelError.exit_code
