@@ -106,9 +106,10 @@ class NeuralPlanner:
         max_steps: int | None = None,
         replans: int | None = None,
         restart_iterations: int = 2000,
-        # Chosen on the validation split (50 problems per family, the shipped GAIDE in paper
-        # mode): 3x the rollouts' spread solved 90/78/80/72/42/26% of TableTop/Box/Bins/
-        # Shelf I-III, 8x 98/98/88/80/66/50%, 16x 96/96/92/80/74/60% (docs/results.md).
+        # Chosen on the validation split (50 problems per family, paper-mode GAIDE with the
+        # earlier weights, trained on 2,038 paths): 3x the rollouts' spread solved
+        # 90/78/80/72/42/26% of TableTop/Box/Bins/Shelf I-III, 8x 98/98/88/80/66/50%,
+        # 16x 96/96/92/80/74/60% (docs/results.md, "A wider second draw").
         widen: float = 16.0,
         shortcuts: int | None = None,
         threads: int = 1,
