@@ -1,6 +1,8 @@
 """Training: MSE on the normalized step delta_q / step along the oracle paths (both
-directions; with several modes, relaxed winner-takes-all: :func:`~planning.neural.models.step_loss`), AdamW with warm-up and cosine decay, validation on held-out scenes, checkpoints
-and resume, CPU or CUDA (mixed precision there), reproducible from a seed.
+directions; with several modes, relaxed winner-takes-all:
+:func:`~planning.neural.models.step_loss`), AdamW with warm-up and cosine decay, validation on
+held-out scenes, checkpoints and resume, CPU or CUDA (mixed precision there), reproducible
+from a seed.
 
 Under ``torchrun --nproc_per_node N`` the same code trains data-parallel
 (DistributedDataParallel; gloo on CPU, NCCL on GPU): each of the N processes draws
