@@ -45,6 +45,16 @@ def worlds(spheres: SphereModel) -> dict[str, object]:
     }
 
 
+def _both(
+    robot: RobotModel, spheres: SphereModel, world: object
+) -> tuple[SphereCollisionChecker, CompiledChecker]:
+    """The numpy reference and the compiled checker of one world."""
+    return (
+        SphereCollisionChecker(robot, spheres, world),  # type: ignore[arg-type]
+        CompiledChecker(robot, spheres, world),  # type: ignore[arg-type]
+    )
+
+
 def _near(checker: SphereCollisionChecker, rng: np.random.Generator, n: int) -> np.ndarray:
     """n configurations whose nearest sphere is within 5 cm of the world (valid or not)."""
     out = []
@@ -68,8 +78,7 @@ def test_configurations_agree_exactly(
     kind: str, worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
 ) -> None:
     world = worlds[kind]
-    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
-    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    ref, fast = _both(robot, spheres, world)
     rng = np.random.default_rng(0)
     Q = robot.sample_uniform(rng, 4000)
     if kind != "empty":
@@ -93,8 +102,7 @@ def test_batches_of_any_size_agree_with_the_single_check(
         world = CloudWorld(rng.normal([0.45, 0.1, 0.35], 0.06, size=(400, 3)), voxel=0.01)
     else:
         world = worlds[kind]  # type: ignore[assignment]
-    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
-    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    ref, fast = _both(robot, spheres, world)
     Q = robot.sample_uniform(rng, 1400)
     if kind != "empty":
         Q[:700] = _near(ref, rng, 700)
@@ -125,8 +133,7 @@ def test_edges_agree_exactly(
     kind: str, worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
 ) -> None:
     world = worlds[kind]
-    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
-    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    ref, fast = _both(robot, spheres, world)
     rng = np.random.default_rng(1)
     Q = robot.sample_uniform(rng, 3000)
     if kind != "empty":
@@ -159,8 +166,7 @@ def test_the_planners_screen_is_the_validity_of_its_points(
     from planning.compiled import validity
 
     world = worlds["cloud"]
-    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
-    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    ref, fast = _both(robot, spheres, world)
     rng = np.random.default_rng(4)
     starts = _valid_near(ref, rng, 2000, 200)
     ends = np.clip(starts + rng.normal(size=starts.shape) * 0.6, robot.lower, robot.upper)
@@ -253,8 +259,7 @@ def test_the_dense_certificate_proves_what_it_claims(
     # compiled checker answers as the reference, and every edge the certificate passes keeps
     # the margin at a tenth of the resolution.
     world = worlds["primitives"]
-    ref = SphereCollisionChecker(robot, spheres, world)  # type: ignore[arg-type]
-    fast = CompiledChecker(robot, spheres, world)  # type: ignore[arg-type]
+    ref, fast = _both(robot, spheres, world)
     rng = np.random.default_rng(8)
     starts = _valid_near(ref, rng, 4000, 300)
     scale = np.repeat([0.25, 0.8, 0.5], 100)[:, None]
@@ -388,8 +393,7 @@ def test_any_serial_chain_matches_pinocchio_and_the_reference(
     world = PrimitiveWorld(
         [Box(np.array([0.3, 0.3, 0.3]), from_xyz_rpy([0.6, -0.1, 0.9], [0, 0, 0]))]
     )
-    ref = SphereCollisionChecker(robot, spheres, world)
-    fast = CompiledChecker(robot, spheres, world)
+    ref, fast = _both(robot, spheres, world)
     rng = np.random.default_rng(5)
     Q = robot.sample_uniform(rng, 3000)
     for q in Q[:50]:
