@@ -69,13 +69,16 @@ class ModelCfg:
             "scene_tokens": self.scene_tokens, "scene_nsample": self.scene_nsample,
             "robot_nsample": self.robot_nsample, "modes": self.modes,
         }  # fmt: skip
-        bad = [k for k, v in counts.items() if v < 1]
-        if bad or self.hidden % self.heads or self.scene_points < self.scene_tokens:
-            raise ModelError(
-                f"model sizes must be >= 1 (bad: {bad}), hidden a multiple of heads "
-                f"({self.hidden} % {self.heads}) and scene_points >= scene_tokens "
-                f"({self.scene_points} < {self.scene_tokens})"
+        wrong = [f"{k} = {v} (must be >= 1)" for k, v in counts.items() if v < 1]
+        if not wrong and self.hidden % self.heads:
+            wrong.append(f"hidden = {self.hidden} (must be a multiple of heads = {self.heads})")
+        if self.scene_points < self.scene_tokens:
+            wrong.append(
+                f"scene_points = {self.scene_points} (must be >= scene_tokens = "
+                f"{self.scene_tokens})"
             )
+        if wrong:
+            raise ModelError("model sizes out of range: " + "; ".join(wrong))
         if not (0 <= self.dropout < 1 and 0 <= self.mlp_dropout < 1) or not self.step > 0:
             raise ModelError(
                 f"need dropouts in [0, 1) and step > 0; got {self.dropout}, "
