@@ -139,6 +139,23 @@ def test_shorten_keeps_the_ends_never_lengthens_and_certifies_every_edge(
     assert wall.first_invalid_edge(short) is None
 
 
+@pytest.mark.parametrize("iterations", [0, 16, 300])
+def test_shorten_leaves_no_waypoint_a_certified_edge_can_skip(
+    wall: CollisionChecker, iterations: int
+) -> None:
+    """The final reduction tries only the skips with a shortcut's waypoint at an end (the
+    others failed in the first): whatever it left out, no skip is left to take."""
+    start, goal = wall_problem()
+    raw = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3)).plan(
+        wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(2)
+    )
+    assert raw.path is not None and len(raw.path) > 4
+    short = shorten(wall, raw.path, np.random.default_rng(3), iterations)
+    i, j = np.triu_indices(len(short), k=2)
+    assert i.size, "the path keeps more than two waypoints"
+    assert not wall.edges_valid(short[i], short[j]).any()
+
+
 class _EdgeLog:
     """A checker that records the edges it is asked to certify, and can refuse them all."""
 
