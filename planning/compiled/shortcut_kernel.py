@@ -19,11 +19,6 @@ and flagged in ``inherited`` (edge r -> r + 1). Most are cut away by later short
 final reduction; the caller certifies those that stay (:func:`planning.rrtc.shorten`).
 Certifying every piece at once cost ~40% of the pass on the shelf families, and every one
 of them passed (measured: 354 of 354 over 40 problems).
-
-The final reduction tries only the skips with a waypoint a shortcut made at one end or the
-other: the first reduction tried every skip between two of the waypoints it kept (from each,
-every farther one before the one it reached) and all of them failed, and a check gives the
-same answer twice, so the result is the same as trying them all again.
 """
 
 from __future__ import annotations
@@ -58,17 +53,13 @@ def _edge(
 
 
 @njit(cache=True)
-def _reduce(I, F, field, X, o, path, inherited, fresh, k, margin, resolution, a, b):  # type: ignore[no-untyped-def]
-    """Drop the waypoints a certified edge can skip; returns the new row count. A skip
-    between two rows that are not ``fresh`` is known to fail and is not tried."""
+def _reduce(I, F, field, X, o, path, inherited, k, margin, resolution, a, b):  # type: ignore[no-untyped-def]
+    """Drop the waypoints a certified edge can skip; returns the new row count."""
     out = 1
     i = 0
     while i < k - 1:
         j = k - 1
         while j > i + 1:
-            if not (fresh[i] or fresh[j]):
-                j -= 1
-                continue
             for c in range(o.dof):
                 a[c] = path[i, c]
                 b[c] = path[j, c]
@@ -79,7 +70,6 @@ def _reduce(I, F, field, X, o, path, inherited, fresh, k, margin, resolution, a,
         inherited[out - 1] = inherited[i] if j == i + 1 else False
         for c in range(o.dof):
             path[out, c] = path[j, c]
-        fresh[out] = fresh[j]
         out += 1
         i = j
     # rows were copied forward in place: row `out - 1` is the last kept waypoint
@@ -110,9 +100,7 @@ def shorten(I, F, field, path, inherited, k, u, margin, resolution, min_saving):
     a, b, pa, pb = np.empty(dof), np.empty(dof), np.empty(dof), np.empty(dof)
     if k <= 2:
         return k
-    fresh = np.ones(path.shape[0], np.bool_)  # rows whose skips are untried
-    k = _reduce(I, F, field, X, o, path, inherited, fresh, k, margin, resolution, a, b)
-    fresh[:k] = False
+    k = _reduce(I, F, field, X, o, path, inherited, k, margin, resolution, a, b)
     arc = np.empty(path.shape[0])
     for it in range(u.shape[0]):
         if k <= 2:
@@ -150,20 +138,16 @@ def shorten(I, F, field, path, inherited, k, u, margin, resolution, min_saving):
                 for c in range(dof):
                     path[r + shift, c] = path[r, c]
                 inherited[r + shift] = inherited[r]
-                fresh[r + shift] = fresh[r]
         elif shift < 0:
             for r in range(ib + 1, k):
                 for c in range(dof):
                     path[r + shift, c] = path[r, c]
                 inherited[r + shift] = inherited[r]
-                fresh[r + shift] = fresh[r]
         for c in range(dof):
             path[ia + 1, c] = pa[c]
             path[ia + 2, c] = pb[c]
         inherited[ia] = True
         inherited[ia + 1] = False
         inherited[ia + 2] = True
-        fresh[ia + 1] = True
-        fresh[ia + 2] = True
         k += shift
-    return _reduce(I, F, field, X, o, path, inherited, fresh, k, margin, resolution, a, b)
+    return _reduce(I, F, field, X, o, path, inherited, k, margin, resolution, a, b)

@@ -143,8 +143,8 @@ def test_shorten_keeps_the_ends_never_lengthens_and_certifies_every_edge(
 def test_shorten_leaves_no_waypoint_a_certified_edge_can_skip(
     wall: CollisionChecker, iterations: int
 ) -> None:
-    """The final reduction tries only the skips with a shortcut's waypoint at an end (the
-    others failed in the first): whatever it left out, no skip is left to take."""
+    """The pass ends with a vertex reduction: no waypoint of its result can be skipped by a
+    certified edge."""
     start, goal = wall_problem()
     raw = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3)).plan(
         wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(2)
