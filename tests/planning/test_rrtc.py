@@ -13,7 +13,7 @@ from planning.collision import CollisionChecker
 from planning.families import generate_problem
 from planning.family_names import FAMILIES, split_seed
 from planning.path_check import check_path
-from planning.planner import PlanStatus, path_length
+from planning.planner import PlanResult, PlanStatus, path_length
 from planning.registry import make_planner
 from planning.robot_model import RobotModel
 from planning.rrtc import CompiledRRTConnect, RRTCCfg, shorten
@@ -123,13 +123,17 @@ def test_a_free_straight_edge_is_the_path(wall: CollisionChecker) -> None:
     assert res.path is not None and len(res.path) == 2 and res.stats["straight"]
 
 
+def _raw_wall_path(wall: CollisionChecker) -> PlanResult:
+    """An unshortened rrtc path around the wall, bounded by iterations alone (no clock)."""
+    start, goal = wall_problem()
+    search = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3, max_iterations=100_000))
+    return search.search(wall, start, goal, np.random.default_rng(2))
+
+
 def test_shorten_keeps_the_ends_never_lengthens_and_certifies_every_edge(
     wall: CollisionChecker,
 ) -> None:
-    start, goal = wall_problem()
-    raw = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3)).plan(
-        wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(2)
-    )
+    raw = _raw_wall_path(wall)
     assert raw.path is not None and len(raw.path) > 4
     short = shorten(wall, raw.path, np.random.default_rng(3), 300)
     np.testing.assert_array_equal(short[0], raw.path[0])
@@ -145,10 +149,7 @@ def test_shorten_leaves_no_waypoint_a_certified_edge_can_skip(
 ) -> None:
     """The pass ends with a vertex reduction: no waypoint of its result can be skipped by a
     certified edge."""
-    start, goal = wall_problem()
-    raw = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3)).plan(
-        wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(2)
-    )
+    raw = _raw_wall_path(wall)
     assert raw.path is not None and len(raw.path) > 4
     short = shorten(wall, raw.path, np.random.default_rng(3), iterations)
     i, j = np.triu_indices(len(short), k=2)
@@ -176,10 +177,7 @@ def test_the_pieces_a_shortcut_keeps_are_certified_when_they_stay(wall: Collisio
     """The kernel takes a shortcut's two pieces on the certificate of the edges they lie on;
     the ones left in the path are certified before it is returned, and a refusal keeps the
     input."""
-    start, goal = wall_problem()
-    raw = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3)).plan(
-        wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(2)
-    )
+    raw = _raw_wall_path(wall)
     assert raw.path is not None
     log = _EdgeLog(wall, refuse=False)
     short = shorten(log, raw.path, np.random.default_rng(0), 16)  # type: ignore[arg-type]
