@@ -335,6 +335,17 @@ def edges_screened(I, F, field, Q0, Q1, margin, out):  # type: ignore[no-untyped
 
 
 @njit(cache=True)
+def dense_certificate(I, F, field, q0, q1, margin, resolution):  # type: ignore[no-untyped-def]
+    """What the dense certificate finds on the edge q0 -> q1 (dof,), whatever its length:
+    -1, the first interval its bound fails, or DENSE_SAMPLES - 1
+    (:func:`~planning.compiled.lanes.dense_prefix`). The tests hold it to the reference's."""
+    o = offsets(I)
+    X = np.empty(o.xsize)
+    edge_steps(I, F, X, o, q0, q1, resolution)
+    return dense_prefix(I, F, field, X, o, q0, q1, margin)
+
+
+@njit(cache=True)
 def first_invalid_edge(I, F, field, path, margin, resolution):  # type: ignore[no-untyped-def]
     """Index of the first edge path[i] -> path[i + 1] that is not certified, or -1."""
     o = offsets(I)

@@ -12,6 +12,7 @@ from gaide_core.errors import ConfigError, PlanningError, RobotModelError
 from gaide_core.transforms import from_xyz_rpy
 from planning.checker import make_checker
 from planning.collision import DENSE_MIN_STEPS, DENSE_SAMPLES, SphereCollisionChecker
+from planning.compiled import validity
 from planning.compiled.checker import CompiledChecker
 from planning.compiled.layout import BLOCK
 from planning.compiled.tables import block_minima
@@ -256,8 +257,8 @@ def test_the_dense_certificate_proves_what_it_claims(
 ) -> None:
     # Long edges from near the obstacles: some certified by the dense certificate alone,
     # some refused by one of its samples, some walked on from where its bound fails. The
-    # compiled checker answers as the reference, and every edge the certificate passes keeps
-    # the margin at a tenth of the resolution.
+    # compiled certificate finds the same, the compiled checker answers as the reference,
+    # and every edge the certificate passes keeps the margin at a tenth of the resolution.
     world = worlds["primitives"]
     ref, fast = _both(robot, spheres, world)
     rng = np.random.default_rng(8)
@@ -287,6 +288,14 @@ def test_the_dense_certificate_proves_what_it_claims(
     assert (prefix == -1).sum() >= 10, "edges one of its samples refuses"
     assert ((prefix >= 0) & (prefix < DENSE_SAMPLES - 1)).sum() >= 4, "edges walked on"
     assert (~long).sum() >= 10, "short edges, walked from the start"
+    # the compiled certificate leaves out the links and pair groups whose bounding balls
+    # already pass (lanes._link_clear, lanes._self_values) and must find the same
+    I, F, field = fast.kernel_tables().args()  # noqa: E741 (layout names)
+    found = [
+        validity.dense_certificate(I, F, field, a, b, ref.margin, ref.resolution) if n else -2
+        for a, b, n in zip(starts, ends, long, strict=True)
+    ]
+    np.testing.assert_array_equal(found, prefix)
     expected = ref.edges_valid(starts, ends)
     np.testing.assert_array_equal(fast.edges_valid(starts, ends), expected)
     assert not expected[prefix == -1].any()
@@ -299,6 +308,57 @@ def test_the_dense_certificate_proves_what_it_claims(
     )
     passed = prefix == DENSE_SAMPLES - 1
     assert fine.edges_valid_sampled(starts[passed], ends[passed]).all()
+
+
+def test_the_dense_certificate_near_self_contact_finds_what_the_reference_finds(
+    robot: RobotModel, spheres: SphereModel
+) -> None:
+    # In the empty world only the self pairs decide. The compiled certificate leaves out the
+    # pair groups whose links' bounding spheres already pass (lanes._self_values), which the
+    # reference does not. Long edges through configurations near self contact (below) must
+    # give the same first failing interval (or -1, or none) and the same answer.
+    ref, fast = _both(robot, spheres, None)
+    I, F, field = fast.kernel_tables().args()  # noqa: E741 (layout names)
+    rng = np.random.default_rng(11)
+    i, j = ref.pairs[:, 0], ref.pairs[:, 1]
+    bound_a = np.array([g[0] for g in ref._link_groups])
+    bound_b = np.array([g[1] for g in ref._link_groups])
+    bound_reach = np.sqrt([g[3] for g in ref._link_groups])
+    # configurations with two links' bounding spheres 0-10 mm apart, two spheres 0.5-5 mm
+    # apart, two spheres overlapping by 0.5-5 mm
+    kinds: list[list[np.ndarray]] = [[], [], []]
+    while min(sum(map(len, k)) for k in kinds) < 300:
+        Q = robot.sample_uniform(rng, 4000)
+        points = ref.kin.points(Q, ref.point_joint, ref.point_local)
+        link_gap = np.linalg.norm(points[:, bound_a] - points[:, bound_b], axis=2) - bound_reach
+        gaps = np.linalg.norm(points[:, i] - points[:, j], axis=2) - (ref.radii[i] + ref.radii[j])
+        low = gaps.min(axis=1)
+        kinds[0].append(Q[((link_gap > 0) & (link_gap < 0.01)).any(axis=1)])
+        kinds[1].append(Q[(low > 0.0005) & (low < 0.005)])
+        kinds[2].append(Q[(low > -0.005) & (low < -0.0005)])
+    mid = np.concatenate([np.concatenate(k)[:300] for k in kinds])
+    way = rng.normal(size=mid.shape)
+    way *= np.tile(np.repeat([0.7, 1.4], 150), 3)[:, None] / np.linalg.norm(way, axis=1)[:, None]
+    before = np.clip(mid - way, robot.lower, robot.upper)
+    after = np.clip(mid + way, robot.lower, robot.upper)
+    keep = ref.config_valid(before) & ref.config_valid(after)
+    before, after = before[keep], after[keep]
+    expected = np.array(
+        [ref._dense_prefix(a, b, *_reaches(ref, a, b)) for a, b in zip(before, after, strict=True)]
+    )
+    found = np.array(
+        [
+            validity.dense_certificate(I, F, field, a, b, ref.margin, ref.resolution)
+            for a, b in zip(before, after, strict=True)
+        ]
+    )
+    assert (expected == DENSE_SAMPLES - 1).sum() >= 10, "edges the certificate passes"
+    assert ((expected >= 0) & (expected < DENSE_SAMPLES - 1)).sum() >= 10, "edges walked on"
+    assert (expected == -1).sum() >= 10, "edges one of its samples refuses"
+    np.testing.assert_array_equal(found, expected)
+    valid = ref.edges_valid(before, after)
+    assert 10 <= valid.sum() <= len(valid) - 10, "edges certified and edges refused"
+    np.testing.assert_array_equal(fast.edges_valid(before, after), valid)
 
 
 def _reaches(
