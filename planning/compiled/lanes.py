@@ -503,6 +503,9 @@ def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off
     _place_spheres(I, F, o, W, C, LC, K)
     _world_values(I, F, field, o, C, LC, CLEARANCE_CAP, margin, V, bad, need, S, K, clear, X, t,
                   low, True)  # fmt: skip
+    for k in range(K):  # a sample in collision (or outside the limits) refuses the edge
+        if bad[k]:
+            return -1
     _self_values(I, F, o, X, C, LC, CLEARANCE_CAP, t, G, passes, bad, low, K)
     for k in range(K):
         if bad[k]:
