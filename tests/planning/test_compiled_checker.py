@@ -338,7 +338,10 @@ def test_the_dense_certificate_near_self_contact_finds_what_the_reference_finds(
         kinds[2].append(Q[(low > -0.005) & (low < -0.0005)])
     mid = np.concatenate([np.concatenate(k)[:300] for k in kinds])
     way = rng.normal(size=mid.shape)
-    way *= np.tile(np.repeat([0.7, 1.4], 150), 3)[:, None] / np.linalg.norm(way, axis=1)[:, None]
+    # short edges keep every lane near the configuration; long ones sweep past it
+    way *= (
+        np.tile(np.repeat([0.05, 0.7, 1.4], 100), 3)[:, None] / np.linalg.norm(way, axis=1)[:, None]
+    )
     before = np.clip(mid - way, robot.lower, robot.upper)
     after = np.clip(mid + way, robot.lower, robot.upper)
     keep = ref.config_valid(before) & ref.config_valid(after)
