@@ -353,40 +353,40 @@ def _link_clear(I: IntArray, F: FloatArray, o: Off, X: FloatArray, lk: int, LC: 
 
 
 @njit(cache=True, inline="always")
+def _link_world_values(I: IntArray, F: FloatArray, field: Field, o: Off, lk: int,
+                       C: FloatArray, LC: FloatArray, cap: float, margin: float, V: FloatArray,
+                       bad: BoolArray, need: BoolArray, S: Scratch, n: int) -> None:  # fmt: skip
+    """``V[s, k]`` = min(world clearance of world sphere s of link lk in lane k, cap), and
+    ``bad[k] |=`` one is below the margin (a link the world checks, in a world with
+    something in it)."""
+    if is_cloud_lattice(field):
+        for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
+            s = I[o.lsph + i]
+            if I[o.sworld + s]:
+                _cloud_values(F, field, o, C[s], F[o.wradii + s], cap, V[s], bad, S, n)
+    else:
+        _primitive_values(I, F, o, lk, C, LC, cap, V, bad, need, n)
+    for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
+        s = I[o.lsph + i]
+        if I[o.sworld + s]:
+            Vs = V[s]
+            for k in range(n):
+                bad[k] |= Vs[k] < margin
+
+
+@njit(cache=True, inline="always")
 def _world_values(I: IntArray, F: FloatArray, field: Field, o: Off, C: FloatArray,
                   LC: FloatArray, cap: float, margin: float, V: FloatArray, bad: BoolArray,
-                  need: BoolArray, S: Scratch, n: int, clear: BoolArray, X: FloatArray,
-                  t: FloatArray, low: FloatArray, certify: bool) -> None:  # fmt: skip
+                  need: BoolArray, S: Scratch, n: int) -> None:  # fmt: skip
     """``V[s, k]`` = min(world clearance of world sphere s in lane k, cap) (as
     :func:`~planning.compiled.validity.sample_values`), and ``bad[k] |=`` one is below
-    the margin. With cap = margin, only that comparison is exact (a configuration check).
-
-    ``certify`` (the dense certificate, among primitives): a link whose bounding ball
-    already passes (:func:`_link_clear`) is marked ``clear[lk]`` and its spheres' values are
-    not written. ``clear`` is False for every other link."""
-    clear[:] = False
+    the margin. With cap = margin, only that comparison is exact (a configuration check)."""
     if o.M == 0 and not is_cloud_lattice(field):  # the empty world
         V[:, :n] = cap
         return
     for lk in range(o.L):
-        if not I[o.lworld + lk]:
-            continue
-        if is_cloud_lattice(field):
-            for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
-                s = I[o.lsph + i]
-                if I[o.sworld + s]:
-                    _cloud_values(F, field, o, C[s], F[o.wradii + s], cap, V[s], bad, S, n)
-        else:
-            if certify and _link_clear(I, F, o, X, lk, LC, t, cap, margin, bad, need, low, n):
-                clear[lk] = True
-                continue
-            _primitive_values(I, F, o, lk, C, LC, cap, V, bad, need, n)
-        for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
-            s = I[o.lsph + i]
-            if I[o.sworld + s]:
-                Vs = V[s]
-                for k in range(n):
-                    bad[k] |= Vs[k] < margin
+        if I[o.lworld + lk]:
+            _link_world_values(I, F, field, o, lk, C, LC, cap, margin, V, bad, need, S, n)
 
 
 @njit(cache=True, inline="always")
@@ -501,8 +501,18 @@ def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off
     _angles(I, o, qv, sn, cs, K)
     _place_joints(I, F, o, qv, sn, cs, W, K)
     _place_spheres(I, F, o, W, C, LC, K)
-    _world_values(I, F, field, o, C, LC, CLEARANCE_CAP, margin, V, bad, need, S, K, clear, X, t,
-                  low, True)  # fmt: skip
+    # the world values (_world_values), none for a link whose bounding ball already passes
+    # among the primitives (clear: every link in the empty world, unless its reach is long)
+    clear[:] = False
+    for lk in range(o.L):
+        if not I[o.lworld + lk]:
+            continue
+        if not is_cloud_lattice(field) and _link_clear(
+            I, F, o, X, lk, LC, t, CLEARANCE_CAP, margin, bad, need, low, K
+        ):
+            clear[lk] = True
+            continue
+        _link_world_values(I, F, field, o, lk, C, LC, CLEARANCE_CAP, margin, V, bad, need, S, K)
     for k in range(K):  # a sample in collision (or outside the limits) refuses the edge
         if bad[k]:
             return -1
@@ -540,7 +550,6 @@ def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
     C, LC, V = np.empty((o.S, 3, K)), np.empty((o.L, 3, K)), np.empty((o.S, K))
     bad, open_, near = np.empty(K, np.bool_), np.empty(K, np.bool_), np.empty(K, np.bool_)
     S = _scratch(K)
-    clear, none = np.empty(o.L, np.bool_), np.empty(0)  # what only the certificate uses
     for b0 in range(0, Q.shape[0], K):
         n = min(K, Q.shape[0] - b0)
         bad[:] = False
@@ -552,8 +561,7 @@ def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
         _angles(I, o, qv, sn, cs, n)
         _place_joints(I, F, o, qv, sn, cs, W, n)
         _place_spheres(I, F, o, W, C, LC, n)
-        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, S, n, clear, none,
-                      none, none, False)  # fmt: skip
+        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, S, n)
         _self_hits(I, F, o, C, LC, bad, open_, near, n)
         for k in range(n):
             out[b0 + k] = not bad[k]
