@@ -28,7 +28,7 @@ from planning.compiled.tables import Tables
 from planning.planner import MultiRootPlanner, PlanResult, PlanStatus, path_length
 
 _BLOCK = 256  # uniform samples drawn at a time (and iterations per kernel call, at most)
-_MIN_SAVING = 1e-9  # rad: smaller shortcut savings are rounding noise
+_ROUNDING = 1e-9  # rad: smaller shortcut savings are rounding noise
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -41,6 +41,11 @@ class RRTCCfg:
     # Random shortcut attempts after vertex reduction: 16-20 shorten the task families' paths
     # by 10-25% for 1.5-2x the planning time; the oracle asks for many more.
     shortcut_iterations: int = 16
+    # rad: a random shortcut that saves no more is not certified. A certified edge costs
+    # ~30 us, and a saving of 1 mrad (a twentieth of a degree) is nothing on a 5 rad path:
+    # with 1e-3 instead of 1e-9, the shortening of 20 balanced problems per family took 3-27% less
+    # time (Box 27%, Shelf III 6%) and the paths' summed cost rose by at most 0.004%.
+    min_saving: float = 1e-3
     capacity: int = 1024  # initial nodes per tree (grown as needed)
 
     def __post_init__(self) -> None:
@@ -50,6 +55,10 @@ class RRTCCfg:
             raise PlanningError(
                 "need max_iterations >= 1, shortcut_iterations >= 0, capacity >= 4; got "
                 f"{self.max_iterations}, {self.shortcut_iterations}, {self.capacity}"
+            )
+        if not (0 <= self.min_saving < np.inf):
+            raise PlanningError(
+                f"min_saving must be a finite angle >= 0 rad, got {self.min_saving}"
             )
 
 
@@ -158,18 +167,22 @@ class CompiledRRTConnect(MultiRootPlanner):
             start_index=i, goal_index=j, raw_cost=path_length(path), raw_waypoints=len(path)
         )
         if cfg.simplify:
-            path = shorten(checker, path, rng, cfg.shortcut_iterations)
+            path = shorten(checker, path, rng, cfg.shortcut_iterations, cfg.min_saving)
             stats["simplify_s"] = time.perf_counter() - t0 - solve_s
         return PlanResult(self.name, PlanStatus.SUCCESS, path, time.perf_counter() - t0, "", stats)
 
 
 def shorten(
-    checker: CollisionChecker, path: Array, rng: np.random.Generator, iterations: int
+    checker: CollisionChecker,
+    path: Array,
+    rng: np.random.Generator,
+    iterations: int,
+    min_saving: float = _ROUNDING,
 ) -> Array:
     """``path`` (K, dof), every edge certified, shortened by the compiled shortcut pass:
     vertex reduction, ``iterations`` random shortcuts (their arc-length pairs drawn from
-    ``rng``), vertex reduction. Same first and last rows, never longer, every edge
-    certified."""
+    ``rng``; one saving ``min_saving`` rad or less is not tried), vertex reduction. Same
+    first and last rows, never longer, every edge certified."""
     I, F, field = kernel_tables(checker).args()  # noqa: E741 (layout names)
     K = len(path)
     buf = np.zeros((K + iterations + 2, path.shape[1]))
@@ -177,7 +190,7 @@ def shorten(
     inherited = np.zeros(len(buf), bool)
     u = rng.random((iterations, 2))
     k = shortcut_kernel.shorten(
-        I, F, field, buf, inherited, K, u, checker.margin, checker.resolution, _MIN_SAVING
+        I, F, field, buf, inherited, K, u, checker.margin, checker.resolution, min_saving
     )
     out = buf[:k].copy()
     # The pieces kept on certified edges are covered by those edges' certificates; certify

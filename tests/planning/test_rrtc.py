@@ -157,6 +157,19 @@ def test_shorten_leaves_no_waypoint_a_certified_edge_can_skip(
     assert not wall.edges_valid(short[i], short[j]).any()
 
 
+def test_shorten_skips_savings_below_min_saving(wall: CollisionChecker) -> None:
+    """A shortcut that saves ``min_saving`` rad or less is not taken: with a bar above the
+    whole path's length the pass is its vertex reduction alone; with a small one it
+    shortens further, and the shortcuts it takes save more than the bar."""
+    raw = _raw_wall_path(wall)
+    assert raw.path is not None
+    reduced = shorten(wall, raw.path, np.random.default_rng(3), 0)
+    barred = shorten(wall, raw.path, np.random.default_rng(3), 300, min_saving=1e3)
+    np.testing.assert_array_equal(barred, reduced)
+    free = shorten(wall, raw.path, np.random.default_rng(3), 300, min_saving=1e-3)
+    assert path_length(free) < path_length(reduced) - 1e-3
+
+
 class _EdgeLog:
     """A checker that records the edges it is asked to certify, and can refuse them all."""
 
@@ -211,6 +224,8 @@ def test_bad_settings_and_checkpoints_are_refused() -> None:
         RRTCCfg(step=0.0)
     with pytest.raises(PlanningError, match="max_iterations >= 1"):
         RRTCCfg(max_iterations=0)
+    with pytest.raises(PlanningError, match="min_saving must be"):
+        RRTCCfg(min_saving=-1e-3)
     with pytest.raises(ConfigError, match="checkpoint is for the neural planners"):
         make_planner("rrtc", checkpoint="gaide.pt")
 
