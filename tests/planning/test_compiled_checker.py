@@ -323,7 +323,6 @@ def test_the_dense_certificate_near_self_contact_finds_what_the_reference_finds(
     # reference does not. Long edges through configurations near self contact (below) must
     # give the same first failing interval (or -1, or none) and the same answer.
     ref, fast = _both(robot, spheres, None)
-    I, F, field = fast.kernel_tables().args()  # noqa: E741 (layout names)
     rng = np.random.default_rng(11)
     i, j = ref.pairs[:, 0], ref.pairs[:, 1]
     bound_a = np.array([g[0] for g in ref._link_groups])
@@ -351,15 +350,7 @@ def test_the_dense_certificate_near_self_contact_finds_what_the_reference_finds(
     after = np.clip(mid + way, robot.lower, robot.upper)
     keep = ref.config_valid(before) & ref.config_valid(after)
     before, after = before[keep], after[keep]
-    expected = np.array(
-        [ref._dense_prefix(a, b, *_reaches(ref, a, b)) for a, b in zip(before, after, strict=True)]
-    )
-    found = np.array(
-        [
-            validity.dense_certificate(I, F, field, a, b, ref.margin, ref.resolution)
-            for a, b in zip(before, after, strict=True)
-        ]
-    )
+    expected, found = _first_failing_intervals(ref, fast, before, after)
     assert (expected == DENSE_SAMPLES - 1).sum() >= 10, "edges the certificate passes"
     assert ((expected >= 0) & (expected < DENSE_SAMPLES - 1)).sum() >= 10, "edges walked on"
     assert (expected == -1).sum() >= 10, "edges one of its samples refuses"
@@ -381,7 +372,6 @@ def test_pair_groups_whose_balls_are_apart_but_fail_the_bound_are_not_left_out(
     # own: the gap cannot change by more than the reach between lanes, so an overlap in one
     # lane already fails the bound with its neighbour.
     ref, fast = _both(robot, spheres, None)
-    I, F, field = fast.kernel_tables().args()  # noqa: E741 (layout names)
     rng = np.random.default_rng(5)
     starts, ends = robot.sample_uniform(rng, 1500), robot.sample_uniform(rng, 1500)
     keep = ref.config_valid(starts) & ref.config_valid(ends)
@@ -401,17 +391,25 @@ def test_pair_groups_whose_balls_are_apart_but_fail_the_bound_are_not_left_out(
     bound = (ball_gap[:, :-1] + ball_gap[:, 1:] >= group_reach[:, None] * t[1]).all(axis=1)
     edge = (apart & ~bound).any(axis=1)
     assert edge.sum() >= 150, "edges where a group is apart in every lane but fails its bound"
-    starts, ends = starts[edge], ends[edge]
-    expected = np.array(
-        [ref._dense_prefix(a, b, *_reaches(ref, a, b)) for a, b in zip(starts, ends, strict=True)]
-    )
+    expected, found = _first_failing_intervals(ref, fast, starts[edge], ends[edge])
+    np.testing.assert_array_equal(found, expected)
+
+
+def _first_failing_intervals(
+    ref: SphereCollisionChecker, fast: CompiledChecker, starts: np.ndarray, ends: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The dense certificate's answer (the first failing interval, -1, or DENSE_SAMPLES - 1)
+    for each edge, by the reference and by the compiled kernel."""
+    I, F, field = fast.kernel_tables().args()  # noqa: E741 (layout names)
+    pairs = list(zip(starts, ends, strict=True))
+    expected = np.array([ref._dense_prefix(a, b, *_reaches(ref, a, b)) for a, b in pairs])
     found = np.array(
         [
             validity.dense_certificate(I, F, field, a, b, ref.margin, ref.resolution)
-            for a, b in zip(starts, ends, strict=True)
+            for a, b in pairs
         ]
     )
-    np.testing.assert_array_equal(found, expected)
+    return expected, found
 
 
 def _reaches(
