@@ -20,7 +20,7 @@ import pytest
 import torch
 
 from gaide.cli import main
-from tests.conftest import ROOT
+from tests.conftest import ROOT, run_cli
 
 BAG = ROOT / "bags" / "sample_workcell.bag"
 TARGET = ROOT / "bags" / "sample_workcell.target_pose.yaml"
@@ -356,6 +356,21 @@ def test_bad_input_is_one_line_with_the_stage_code_and_nothing_half_written(
     assert not (made["evil_ckpt"].parent / "pwned").exists(), "the pickle payload ran"
     leftovers = [p for p in set(tmp_path.rglob("*")) - before if p.name.startswith(".")]
     assert leftovers == [], leftovers
+
+
+def test_a_run_that_fails_before_it_has_anything_to_show_prints_its_error_alone(
+    tmp_path: Path,
+) -> None:
+    # Calibration opens the bag first, and this one is not a bag: no stage has made anything
+    # run.mcap could show, so there is no run.mcap and no warning line about it.
+    junk = _write(tmp_path, "junk.bag", "not a bag\n")
+    target = BAG.with_suffix(".target_pose.yaml")
+    out = tmp_path / "out"
+    proc = run_cli("run", str(junk), "--goal", "home", "--target-pose", str(target), "-o", str(out))
+    err = proc.stderr.strip().splitlines()
+    assert proc.returncode == 3, err
+    assert len(err) == 1 and "cannot open as a bag" in err[0], err
+    assert not (out / "run.mcap").exists()
 
 
 # -- faults of the system: a full disk, a read-only folder ---------------------------------

@@ -228,6 +228,11 @@ def mcap_output(cfg: RunCfg, runner: StageRunner, record: StageRecord, made: Mad
     start_ns = min(stamps, default=made.start_ns)
     cloud = made.sensed.cloud if made.sensed is not None else None
     simulated = read_log_csv(made.sim_log) if made.sim_log is not None else None
+    shown = (frames, made.camera, cloud, made.planned, made.traj, simulated)
+    if all(x is None for x in shown):
+        # a run that failed before any stage made something to show, in a bag without
+        # images: no file, and no warning (the run's own error says what went wrong)
+        return
     written: list[RunMcap] = []
 
     def write(tmp: Path) -> None:
