@@ -8,6 +8,8 @@ import json
 import subprocess
 import sys
 
+from tests.conftest import ROOT
+
 # Run in a fresh process: kernels the other tests already called would hide a gap here.
 _SCRIPT = """
 import json
@@ -54,7 +56,7 @@ print(json.dumps({k: v for k, v in after.items() if v != before.get(k)}))
 
 def test_after_warm_up_planning_in_a_cloud_compiles_nothing() -> None:
     run = subprocess.run(
-        [sys.executable, "-c", _SCRIPT], capture_output=True, text=True, check=False
+        [sys.executable, "-c", _SCRIPT], capture_output=True, text=True, check=False, cwd=ROOT
     )
     assert run.returncode == 0, run.stderr[-3000:]
     new = json.loads(run.stdout.strip().splitlines()[-1])
