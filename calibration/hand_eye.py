@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import cv2
 import numpy as np
@@ -31,7 +31,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from calibration.detect import Detection
-from calibration.frames import check_camera, check_stamps, not_found_error, observe
+from calibration.frames import Observation, check_camera, check_stamps, not_found_error, observe
 from calibration.pnp import dist_coeffs, pose_difference, robust_average
 from calibration.result import (
     CalibrationResult,
@@ -301,6 +301,75 @@ def calibrate_hand_eye(
     T_ct = [o.pose.T_cam_target for o in obs if o.pose is not None]
     dets = [o.detection for o in obs if o.detection is not None]
 
+    methods, starts = _closed_form(A, A_inv, T_ct, cam, dets, camera_in_base)
+    best = min(methods, key=lambda m: m.rms_px)
+    spread = _spread(methods)
+    log.info(
+        "closed-form hand-eye methods agree within %.2f mm / %.3f deg (a start only); "
+        "refining from %s",
+        spread.translation_mm,
+        spread.rotation_deg,
+        best.name,
+    )
+
+    X, Y, rejected = _refine_without_outliers(*starts[best.name], cam, A, dets, obs)
+    res = _pose_residuals(X, Y, cam, A, dets)
+    rms = _frame_rms(res, dets)
+    by_index = {o.index: float(r) for o, r in zip(obs, rms, strict=True)}
+    frames = tuple(
+        FrameResidual(
+            o.index,
+            o.stamp_ns,
+            by_index.get(o.index),
+            o.index in by_index and o.index not in rejected,
+            rejected.get(o.index, o.reason),
+        )
+        for o in obs_all
+    )
+    used = [k for k, o in enumerate(obs) if o.index not in rejected]
+    pts = [len(dets[k].object_points) for k in used]
+    rms_all = float(np.sqrt(np.dot([rms[k] ** 2 for k in used], pts) / np.sum(pts)))
+    std = uncertainty(X, Y, cam, A[used], [dets[k] for k in used])
+    log.info(
+        "hand-eye (%s) refined: reprojection RMS %.3f px over %d frames; standard deviation "
+        "%.2f mm, %.3f deg",
+        setup.value,
+        rms_all,
+        len(pts),
+        std.translation_mm,
+        std.rotation_deg,
+    )
+    _warn_if_weak(rms_all, std, cam)
+    in_hand = setup is Setup.EYE_IN_HAND
+    return CalibrationResult(
+        mode=Mode.HAND_EYE,
+        setup=setup,
+        T_base_cam=camera_in_base(X),
+        **camera_fields(cam),
+        reprojection_rms_px=rms_all,
+        frames=frames,
+        methods=tuple(methods),
+        spread=spread,
+        uncertainty=std,
+        T_flange_target=None if in_hand else Y,
+        T_flange_cam=X if in_hand else None,
+        T_base_target=Y if in_hand else None,
+        target=to_dict(target),
+    )
+
+
+def _closed_form(
+    A: Array,
+    A_inv: Array,
+    T_ct: Sequence[Array],
+    cam: Intrinsics,
+    dets: Sequence[Detection],
+    camera_in_base: Callable[[Array], Array],
+) -> tuple[list[MethodResult], dict[str, tuple[Array, Array]]]:
+    """OpenCV's closed-form hand-eye methods (``METHODS``): each one's answer as the camera in
+    the base frame with its reprojection RMS, and its (X, Y) to start a refinement from. A
+    method that fails or gives no rotation is left out with a warning; CalibrationError when
+    all do."""
     methods: list[MethodResult] = []
     starts: dict[str, tuple[Array, Array]] = {}
     for name, flag in METHODS.items():
@@ -329,17 +398,22 @@ def calibrate_hand_eye(
         log.info("hand-eye %s: reprojection RMS %.3f px", name, method_rms)
     if not methods:
         raise CalibrationError("every hand-eye method failed: check the flange poses and images")
-    best = min(methods, key=lambda m: m.rms_px)
-    spread = _spread(methods)
-    log.info(
-        "closed-form hand-eye methods agree within %.2f mm / %.3f deg (a start only); "
-        "refining from %s",
-        spread.translation_mm,
-        spread.rotation_deg,
-        best.name,
-    )
+    return methods, starts
 
-    X, Y, res = _refine(*starts[best.name], cam, A, dets)
+
+def _refine_without_outliers(
+    X: Array,
+    Y: Array,
+    cam: Intrinsics,
+    A: Array,
+    dets: Sequence[Detection],
+    obs: Sequence[Observation],
+) -> tuple[Array, Array, dict[int, str]]:
+    """Refine (X, Y) on every frame, then again without the frames whose reprojection RMS is
+    ``OUTLIER_K`` robust sigmas above the median (at least ``OUTLIER_MIN_PX``), as long as 3
+    frames stay. Returns the refined (X, Y) and the reason each dropped frame was dropped,
+    by image index (``obs[k].index`` for frame k)."""
+    X, Y, res = _refine(X, Y, cam, A, dets)
     rms = _frame_rms(res, dets)
     med = float(np.median(rms))
     limit = max(med + OUTLIER_K * 1.4826 * float(np.median(np.abs(rms - med))), OUTLIER_MIN_PX)
@@ -354,39 +428,19 @@ def calibrate_hand_eye(
             )
             log.warning("hand-eye: frame %d dropped: %s", obs[k].index, rejected[obs[k].index])
         X, Y, _ = _refine(X, Y, cam, A[keep], [dets[k] for k in keep])
-    res = _pose_residuals(X, Y, cam, A, dets)
-    rms = _frame_rms(res, dets)
-    by_index = {o.index: float(r) for o, r in zip(obs, rms, strict=True)}
-    frames = tuple(
-        FrameResidual(
-            o.index,
-            o.stamp_ns,
-            by_index.get(o.index),
-            o.index in by_index and o.index not in rejected,
-            rejected.get(o.index, o.reason),
-        )
-        for o in obs_all
-    )
-    used = [k for k, o in enumerate(obs) if o.index not in rejected]
-    pts = [len(dets[k].object_points) for k in used]
-    rms_all = float(np.sqrt(np.dot([rms[k] ** 2 for k in used], pts) / np.sum(pts)))
-    std = uncertainty(X, Y, cam, A[used], [dets[k] for k in used])
-    log.info(
-        "hand-eye (%s) refined: reprojection RMS %.3f px over %d frames; standard deviation "
-        "%.2f mm, %.3f deg",
-        setup.value,
-        rms_all,
-        len(pts),
-        std.translation_mm,
-        std.rotation_deg,
-    )
+    return X, Y, rejected
+
+
+def _warn_if_weak(rms_px: float, std: Uncertainty, cam: Intrinsics) -> None:
+    """Warn when the refined answer's reprojection RMS is above what this image size allows,
+    or when the data pins the camera down only loosely."""
     rms_limit = rms_limit_px(cam.width, cam.height)
-    if rms_all > rms_limit:
+    if rms_px > rms_limit:
         log.warning(
             "hand-eye reprojection RMS %.2f px is above %.2f px (0.15%% of this %dx%d image's "
             "diagonal): check the flange poses' time alignment, the intrinsics and the target "
             "size",
-            rms_all,
+            rms_px,
             rms_limit,
             cam.width,
             cam.height,
@@ -399,19 +453,3 @@ def calibrate_hand_eye(
             std.translation_mm,
             std.rotation_deg,
         )
-    in_hand = setup is Setup.EYE_IN_HAND
-    return CalibrationResult(
-        mode=Mode.HAND_EYE,
-        setup=setup,
-        T_base_cam=camera_in_base(X),
-        **camera_fields(cam),
-        reprojection_rms_px=rms_all,
-        frames=frames,
-        methods=tuple(methods),
-        spread=spread,
-        uncertainty=std,
-        T_flange_target=None if in_hand else Y,
-        T_flange_cam=X if in_hand else None,
-        T_base_target=Y if in_hand else None,
-        target=to_dict(target),
-    )
