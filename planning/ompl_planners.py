@@ -176,6 +176,42 @@ def _state(space: Any, q: Array) -> Any:
     return s
 
 
+def _ompl_problem(
+    checker: CollisionChecker, starts: Array, goals: Array, counters: _Counters
+) -> tuple[Any, Any, Any, _EdgeValidator]:
+    """OMPL's space information (the joint box, the checker as state and motion validity,
+    counted in ``counters``), the problem (every start, every goal), its path-length
+    objective, whose threshold of 0 rad no path meets (anytime planners use their whole
+    budget), and the motion validator, for the caller to hold while OMPL uses it."""
+    robot = checker.robot
+    dof = robot.dof
+    space = ob.RealVectorStateSpace(dof)
+    bounds = ob.RealVectorBounds(dof)
+    for i in range(dof):
+        bounds.setLow(i, float(robot.lower[i]))
+        bounds.setHigh(i, float(robot.upper[i]))
+    space.setBounds(bounds)
+    si = ob.SpaceInformation(space)
+    si.setStateValidityChecker(_validity_callback(checker, dof, counters))
+    validator = _EdgeValidator(si, checker, dof, counters)
+    si.setMotionValidator(validator)
+    si.setup()
+    pdef = ob.ProblemDefinition(si)
+    for q in starts:
+        pdef.addStartState(_state(space, q))
+    if len(goals) == 1:
+        pdef.setGoalState(_state(space, goals[0]))
+    else:
+        goal_states = ob.GoalStates(si)
+        for q in goals:
+            goal_states.addState(_state(space, q))
+        pdef.setGoal(goal_states)
+    objective = ob.PathLengthOptimizationObjective(si)
+    objective.setCostThreshold(ob.Cost(0.0))
+    pdef.setOptimizationObjective(objective)
+    return si, pdef, objective, validator
+
+
 def _path_array(path: Any, dof: int) -> Array:
     """(K, dof) rad from an OMPL PathGeometric."""
     out = np.empty((path.getStateCount(), dof))
@@ -237,42 +273,15 @@ class OmplPlanner(MultiRootPlanner):
         budget_s: float,
         seed: int,
     ) -> tuple[PlanStatus, Array | None, str, dict[str, Any]]:
-        robot = checker.robot
-        dof = robot.dof
+        dof = checker.robot.dof
         deadline = t0 + budget_s
         solve_deadline = deadline
         if self.simplify and self.anytime:
             solve_deadline = t0 + (1.0 - _SIMPLIFY_SHARE) * budget_s
         _seed_ompl(seed)
-
-        space = ob.RealVectorStateSpace(dof)
-        bounds = ob.RealVectorBounds(dof)
-        for i in range(dof):
-            bounds.setLow(i, float(robot.lower[i]))
-            bounds.setHigh(i, float(robot.upper[i]))
-        space.setBounds(bounds)
-        si = ob.SpaceInformation(space)
         counters = _Counters()
-        si.setStateValidityChecker(_validity_callback(checker, dof, counters))
-        validator = _EdgeValidator(si, checker, dof, counters)
-        si.setMotionValidator(validator)
-        si.setup()
-
-        pdef = ob.ProblemDefinition(si)
-        for q in starts:
-            pdef.addStartState(_state(space, q))
-        if len(goals) == 1:
-            pdef.setGoalState(_state(space, goals[0]))
-        else:
-            goal_states = ob.GoalStates(si)
-            for q in goals:
-                goal_states.addState(_state(space, q))
-            pdef.setGoal(goal_states)
-        objective = ob.PathLengthOptimizationObjective(si)
-        # No path is shorter than 0 rad: the objective is never satisfied, so anytime
-        # planners do not stop before the budget.
-        objective.setCostThreshold(ob.Cost(0.0))
-        pdef.setOptimizationObjective(objective)
+        # held while OMPL may call it: its C++ side points at this Python object
+        si, pdef, objective, _validator = _ompl_problem(checker, starts, goals, counters)
         planner = getattr(og, _OMPL_CLASSES[self.name])(si)
         planner.setProblemDefinition(pdef)
         planner.setup()
