@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from gaide.common import print_table, robot_and_spheres, write_json
 from gaide_core.errors import ConfigError
 from perception.cloud_cfg import CloudCfg
+
+if TYPE_CHECKING:  # annotations only: the commands import their modules when they run
+    from calibration.result import CalibrationResult
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -113,7 +117,6 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from calibration.targets import parse_target
     from gaide.flows.calibrate import calibrate_bag, calibrate_images
     from gaide_core.errors import CalibrationError
-    from gaide_core.transforms import to_xyz_quat
     from planning.robot_model import load_robot
 
     if (args.bag is None) == (args.images is None):
@@ -168,8 +171,31 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         for path in written:
             path.unlink(missing_ok=True)
         raise
+    rows = _calibration_rows(res, intrinsics_rms)
+    rows += [("calibration", str(out)), ("hand-eye YAML", str(handeye)), ("overlay", str(overlay))]
+    print_table(rows, "calibration")
+    tf_line = static_transform_command(res, frames)
+    print(tf_line)
+    if args.json:
+        figures = _calibration_figures(res, intrinsics_rms)
+        figures.update(
+            calibration=str(out),
+            overlay=str(overlay),
+            handeye_yaml=str(handeye),
+            static_transform_publisher=tf_line,
+        )
+        write_json(args.json, figures)
+    return 0
+
+
+def _calibration_rows(
+    res: CalibrationResult, intrinsics_rms: float | None
+) -> list[tuple[str, str]]:
+    """The summary table's rows for a calibration: mode, frames, error, the pose found, its
+    standard deviation and the frames dropped."""
+    from gaide_core.transforms import to_xyz_quat
+
     used = sum(f.used for f in res.frames)
-    xyz, quat = to_xyz_quat(res.T_base_cam)
     rows = [
         ("mode", res.mode.value + ("" if res.setup is None else f" ({res.setup.value})")),
         ("frames used", f"{used} of {len(res.frames)}"),
@@ -177,57 +203,48 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     ]
     if intrinsics_rms is not None:
         rows.append(("intrinsics", f"estimated from the photos, RMS {intrinsics_rms:.3f} px"))
-    if res.T_flange_cam is not None:
-        fxyz, fquat = to_xyz_quat(res.T_flange_cam)
-        rows += [
-            ("T_flange_cam xyz", f"{np.round(fxyz, 4).tolist()} m"),
-            ("T_flange_cam quat", f"{np.round(fquat, 5).tolist()} (x, y, z, w)"),
-        ]
-    else:
-        rows += [
-            ("T_base_cam xyz", f"{np.round(xyz, 4).tolist()} m"),
-            ("T_base_cam quat", f"{np.round(quat, 5).tolist()} (x, y, z, w)"),
-        ]
+    name, T = (
+        ("T_flange_cam", res.T_flange_cam)
+        if res.T_flange_cam is not None
+        else ("T_base_cam", res.T_base_cam)
+    )
+    xyz, quat = to_xyz_quat(T)
+    rows += [
+        (f"{name} xyz", f"{np.round(xyz, 4).tolist()} m"),
+        (f"{name} quat", f"{np.round(quat, 5).tolist()} (x, y, z, w)"),
+    ]
     if res.uncertainty is not None:
-        rows.append(
-            (
-                "standard deviation",
-                f"{res.uncertainty.translation_mm:.2f} mm, {res.uncertainty.rotation_deg:.3f} deg",
-            )
-        )
-    dropped = [f for f in res.frames if f.rms_px is not None and not f.used]
-    for f in dropped:
-        rows.append((f"frame {f.index} dropped", f.reason))
-    rows += [("calibration", str(out)), ("hand-eye YAML", str(handeye)), ("overlay", str(overlay))]
-    print_table(rows, "calibration")
-    tf_line = static_transform_command(res, frames)
-    print(tf_line)
-    if args.json:
-        figures: dict[str, object] = {
-            "reprojection_rms_px": res.reprojection_rms_px,
-            "frames_used": used,
-            "frames": len(res.frames),
-            "T_base_cam": res.T_base_cam.tolist(),
-            "calibration": str(out),
-            "overlay": str(overlay),
-            "handeye_yaml": str(handeye),
-            "static_transform_publisher": tf_line,
-            "frame_rms_px": [f.rms_px for f in res.frames],
-        }
-        if res.setup is not None:
-            figures["setup"] = res.setup.value
-        if res.T_flange_cam is not None:
-            figures["T_flange_cam"] = res.T_flange_cam.tolist()
-        if res.spread is not None:
-            figures["spread_mm"] = res.spread.translation_mm
-            figures["spread_deg"] = res.spread.rotation_deg
-        if res.uncertainty is not None:
-            figures["std_mm"] = res.uncertainty.translation_mm
-            figures["std_deg"] = res.uncertainty.rotation_deg
-        if intrinsics_rms is not None:
-            figures["intrinsics_rms_px"] = intrinsics_rms
-        write_json(args.json, figures)
-    return 0
+        u = res.uncertainty
+        rows.append(("standard deviation", f"{u.translation_mm:.2f} mm, {u.rotation_deg:.3f} deg"))
+    for f in res.frames:
+        if f.rms_px is not None and not f.used:
+            rows.append((f"frame {f.index} dropped", f.reason))
+    return rows
+
+
+def _calibration_figures(res: CalibrationResult, intrinsics_rms: float | None) -> dict[str, object]:
+    """``gaide calibrate --json``'s figures of a calibration (the files written are added by
+    the caller)."""
+    figures: dict[str, object] = {
+        "reprojection_rms_px": res.reprojection_rms_px,
+        "frames_used": sum(f.used for f in res.frames),
+        "frames": len(res.frames),
+        "T_base_cam": res.T_base_cam.tolist(),
+        "frame_rms_px": [f.rms_px for f in res.frames],
+    }
+    if res.setup is not None:
+        figures["setup"] = res.setup.value
+    if res.T_flange_cam is not None:
+        figures["T_flange_cam"] = res.T_flange_cam.tolist()
+    if res.spread is not None:
+        figures["spread_mm"] = res.spread.translation_mm
+        figures["spread_deg"] = res.spread.rotation_deg
+    if res.uncertainty is not None:
+        figures["std_mm"] = res.uncertainty.translation_mm
+        figures["std_deg"] = res.uncertainty.rotation_deg
+    if intrinsics_rms is not None:
+        figures["intrinsics_rms_px"] = intrinsics_rms
+    return figures
 
 
 def cmd_perceive(args: argparse.Namespace) -> int:
