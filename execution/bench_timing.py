@@ -48,8 +48,9 @@ import numpy as np
 from execution.compare import compare
 from execution.ruckig_timing import RuckigParameterizer
 from execution.sim_cfg import SimCfg
-from execution.simulate import simulate
+from execution.simulate import SimResult, simulate
 from execution.timing_cfg import TimingCfg, TimingMode
+from execution.trajectory import TimedTrajectory
 from execution.verify import limit_violations, path_deviation, swept_collisions
 from gaide_core.errors import PlanningError
 from planning.checker import make_checker
@@ -145,17 +146,38 @@ def run_timing_benchmark(
             sim = simulate(tb, robot, primitives=problem.world, cfg=cfg.sim, checker=checker)
             squared += float(np.sum(sim.error**2))
             samples += sim.error.size
-            run["sim_rms_rad"] = sim.rms_all_rad
-            run["sim_max_rad"] = sim.max_all_rad
-            run["sim_max_after_delay_rad"] = sim.max_after_delay_all_rad
-            run["sim_delay_recovered_ms"] = 1e3 * compare(tb, sim.log).delay_s
-            clearance = sim.executed_min_clearance_m  # inf in an empty world: JSON has none
-            run["sim_min_clearance_m"] = clearance if np.isfinite(clearance or np.nan) else None
-            run["sim_clearance_ok"] = sim.clearance_ok
-            run["sim_limited_cycles"] = sim.limited_cycles
-            run["sim_contacts"] = len(sim.contacts)
-            run["sim_status"] = sim.status.value
+            run.update(_simulation_figures(sim, tb))
         runs.append(run)
+    tracking_rms = float(np.sqrt(squared / samples)) if samples else None
+    summary = _summary(cfg, runs, failures, tracking_rms)
+    summary["wall_s"] = time.perf_counter() - t_start
+    return summary
+
+
+def _simulation_figures(sim: SimResult, traj: TimedTrajectory) -> dict[str, Any]:
+    """One path's simulated execution: tracking, the delay recovered from the log, the
+    executed clearance and contacts."""
+    clearance = sim.executed_min_clearance_m  # inf in an empty world: JSON has none
+    return {
+        "sim_rms_rad": sim.rms_all_rad,
+        "sim_max_rad": sim.max_all_rad,
+        "sim_max_after_delay_rad": sim.max_after_delay_all_rad,
+        "sim_delay_recovered_ms": 1e3 * compare(traj, sim.log).delay_s,
+        "sim_min_clearance_m": clearance if np.isfinite(clearance or np.nan) else None,
+        "sim_clearance_ok": sim.clearance_ok,
+        "sim_limited_cycles": sim.limited_cycles,
+        "sim_contacts": len(sim.contacts),
+        "sim_status": sim.status.value,
+    }
+
+
+def _summary(
+    cfg: TimingBenchCfg,
+    runs: list[dict[str, Any]],
+    failures: list[str],
+    tracking_rms: float | None,
+) -> dict[str, Any]:
+    """The benchmark's figures over its paths (``runs``, each path's record, included)."""
     multi = [r for r in runs if r["segments_after_shortcut"] >= 3]
     simulated = [r for r in runs if "sim_rms_rad" in r]
     configured = 1e3 * (cfg.sim.servo.delay_s if cfg.sim.controller == "servo" else 0.0)
@@ -170,7 +192,7 @@ def run_timing_benchmark(
         "blended_over_exact_duration": _median([r["ratio"] for r in multi]),
         "blended_collisions": sum(r["blended_invalid_motions"] > 0 for r in runs),
         "ms_per_path": _median([r["ms"] for r in runs]),
-        "sim_tracking_rms_rad": float(np.sqrt(squared / samples)) if samples else None,
+        "sim_tracking_rms_rad": tracking_rms,
         "sim_tracking_max_rad": max((r["sim_max_rad"] for r in simulated), default=None),
         "sim_tracking_max_after_delay_rad": max(
             (r["sim_max_after_delay_rad"] for r in simulated), default=None
@@ -197,5 +219,4 @@ def run_timing_benchmark(
         "verify_rate_hz": cfg.verify_rate_hz,
         "families": list(cfg.families),
         "runs": runs,
-        "wall_s": time.perf_counter() - t_start,
     }
