@@ -370,26 +370,7 @@ def simulate(
     error = run.q_log - run.planned
     d = run.delay_cycles
     after = run.q_log[d:] - run.planned[: len(run.planned) - d]
-    contacts = tuple(
-        Contact(
-            link=link,
-            obstacle=obs,
-            first_s=float(a),
-            last_s=float(b),
-            steps=int(steps),
-            deepest_m=float(depth),
-            mesh_confirmed=None
-            if primitives is None
-            else _mesh_hit(robot, primitives, run.times, run.commanded, float(a), float(b)),
-        )
-        for (link, obs), (a, b, steps, depth) in sorted(run.found.items(), key=lambda kv: kv[1][0])
-    )
-    if not contacts:
-        status = SimStatus.CLEAR
-    elif all(c.mesh_confirmed is False for c in contacts):
-        status = SimStatus.HULL_ONLY
-    else:
-        status = SimStatus.CONTACT
+    contacts, status = _contacts(run, robot, primitives)
     clearance, margin, invalid = None, None, None
     if checker is not None:
         clearance = float(checker.world_clearance(run.q_true).min())
@@ -423,6 +404,33 @@ def simulate(
         clearance_margin_m=margin,
         executed_invalid=invalid,
     )
+
+
+def _contacts(
+    run: _Run, robot: RobotModel, primitives: PrimitiveWorld | None
+) -> tuple[tuple[Contact, ...], SimStatus]:
+    """The run's contacts in the order they began, each re-checked against the URDF's meshes
+    where the scene is primitives, and the run's status: clear, hull-only (every contact
+    cleared by the meshes) or contact."""
+    contacts = tuple(
+        Contact(
+            link=link,
+            obstacle=obs,
+            first_s=float(a),
+            last_s=float(b),
+            steps=int(steps),
+            deepest_m=float(depth),
+            mesh_confirmed=None
+            if primitives is None
+            else _mesh_hit(robot, primitives, run.times, run.commanded, float(a), float(b)),
+        )
+        for (link, obs), (a, b, steps, depth) in sorted(run.found.items(), key=lambda kv: kv[1][0])
+    )
+    if not contacts:
+        return contacts, SimStatus.CLEAR
+    if all(c.mesh_confirmed is False for c in contacts):
+        return contacts, SimStatus.HULL_ONLY
+    return contacts, SimStatus.CONTACT
 
 
 def _mesh_hit(
