@@ -35,7 +35,7 @@ from calibration.targets import Charuco, target_from_dict
 from gaide.flows.calibrate import calibrate_bag
 from gaide.flows.perceive import perceive_bag
 from gaide.synthetic.record import load_ground_truth, record_scene, target_pose_path
-from gaide.synthetic.scene import fixed_scene, hand_eye_scene
+from gaide.synthetic.scene import SyntheticScene, fixed_scene, hand_eye_scene
 from gaide_core.errors import PerceptionError
 from gaide_core.transforms import from_xyz_rpy, invert, transform_error
 from gaide_core.types import Array
@@ -62,86 +62,114 @@ def run_perception_benchmark(
     out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        # fixed target
         scene = fixed_scene(robot, rng, frames=5)
-        bag, truth = record_scene(scene, robot, folder / "fixed.bag", rng, progress=progress)
-        gt = load_ground_truth(truth)
-        T_true = np.asarray(gt["T_base_cam"]["matrix"])
-        run = calibrate_bag(bag, mode="fixed", target_pose=target_pose_path(bag))
-        dt, dr = transform_error(run.result.T_base_cam, T_true)
-        out.update(
-            fixed_err_mm=dt * 1e3,
-            fixed_err_deg=float(np.degrees(dr)),
-            fixed_rms_px=run.result.reprojection_rms_px,
-        )
-        cloud, _, _ = perceive_bag(bag, run.result, robot, spheres)
-        err = np.abs(PrimitiveWorld.from_dict(gt["world"]).distance(cloud.points))
-        out.update(
-            cloud_median_err_mm=float(np.median(err)) * 1e3,
-            cloud_p95_err_mm=float(np.percentile(err, 95)) * 1e3,
-            cloud_points=len(cloud),
-        )
-        # hand-eye
-        he = hand_eye_scene(
-            robot, lambda w: make_checker(robot, spheres, w), rng, states=handeye_poses
-        )
-        bag_he, truth_he = record_scene(he, robot, folder / "hand_eye.bag", rng, progress=progress)
-        gt_he = load_ground_truth(truth_he)
-        run_he = calibrate_bag(
-            bag_he, mode="hand-eye", robot=robot, target=target_from_dict(gt_he["target"])
-        )
-        dt, dr = transform_error(
-            run_he.result.T_base_cam, np.asarray(gt_he["T_base_cam"]["matrix"])
-        )
-        spread = run_he.result.spread
-        out.update(
-            handeye_err_mm=dt * 1e3,
-            handeye_err_deg=float(np.degrees(dr)),
-            handeye_rms_px=run_he.result.reprojection_rms_px,
-            handeye_frames_used=sum(f.used for f in run_he.result.frames),
-            handeye_methods_spread_mm=None if spread is None else spread.translation_mm,
-            handeye_methods_spread_deg=None if spread is None else spread.rotation_deg,
-        )
+        T_base_cam = _fixed_target(scene, robot, spheres, folder, rng, progress, out)
+        _hand_eye(robot, spheres, folder, rng, handeye_poses, progress, out)
         out.update(eye_in_hand_benchmark(rng, poses=handeye_poses))
-        # speed, on a longer recording: the pipeline's own path (read every frame, fuse,
-        # one cloud), and every frame turned into a cloud on its own
-        speed_scene = replace(
-            scene, joint_states=np.repeat(scene.joint_states[:1], speed_frames, axis=0)
-        )
-        bag_speed, _ = record_scene(
-            speed_scene, robot, folder / "speed.bag", rng, progress=progress
-        )
-        checker = make_checker(robot, spheres)
-        robot_spheres = (checker.sphere_centers(scene.joint_states[:1])[0], checker.radii)
-        cfg = CloudCfg(max_frames=speed_frames)
-        t0 = time.perf_counter()
-        frames = read_bag(bag_speed, streams=("depth",))
-        scene_cloud(frames, run.result.T_base_cam, cfg, robot_spheres=robot_spheres, colored=False)
-        fused_s = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        frames = read_bag(bag_speed, streams=("depth",))
-        depth = frames.depth
-        if depth is None:
-            raise PerceptionError(f"{bag_speed}: the recorder wrote no depth")
-        for i in range(len(depth)):
-            single = replace(
-                frames,
-                depth=ImageStream(
-                    depth.intrinsics,
-                    depth.images[i : i + 1],
-                    depth.stamps_ns[i : i + 1],
-                ),
-            )
-            scene_cloud(
-                single, run.result.T_base_cam, cfg, robot_spheres=robot_spheres, colored=False
-            )
-        single_s = time.perf_counter() - t0
-        out.update(
-            frames_per_s=len(depth) / fused_s,
-            single_frame_clouds_per_s=len(depth) / single_s,
-            speed_frames=len(depth),
-        )
+        _speed(scene, T_base_cam, robot, spheres, folder, rng, speed_frames, progress, out)
     return out
+
+
+def _fixed_target(
+    scene: SyntheticScene,
+    robot: RobotModel,
+    spheres: SphereModel,
+    folder: Path,
+    rng: np.random.Generator,
+    progress: Any,
+    out: dict[str, Any],
+) -> Array:
+    """Calibrate a recording of ``scene`` from its fixed target, and perceive its cloud:
+    the camera's error against the truth and the cloud's distance to the true obstacles
+    into ``out``. Returns the calibrated camera pose (base frame)."""
+    bag, truth = record_scene(scene, robot, folder / "fixed.bag", rng, progress=progress)
+    gt = load_ground_truth(truth)
+    run = calibrate_bag(bag, mode="fixed", target_pose=target_pose_path(bag))
+    dt, dr = transform_error(run.result.T_base_cam, np.asarray(gt["T_base_cam"]["matrix"]))
+    out.update(
+        fixed_err_mm=dt * 1e3,
+        fixed_err_deg=float(np.degrees(dr)),
+        fixed_rms_px=run.result.reprojection_rms_px,
+    )
+    cloud, _, _ = perceive_bag(bag, run.result, robot, spheres)
+    err = np.abs(PrimitiveWorld.from_dict(gt["world"]).distance(cloud.points))
+    out.update(
+        cloud_median_err_mm=float(np.median(err)) * 1e3,
+        cloud_p95_err_mm=float(np.percentile(err, 95)) * 1e3,
+        cloud_points=len(cloud),
+    )
+    return run.result.T_base_cam
+
+
+def _hand_eye(
+    robot: RobotModel,
+    spheres: SphereModel,
+    folder: Path,
+    rng: np.random.Generator,
+    poses: int,
+    progress: Any,
+    out: dict[str, Any],
+) -> None:
+    """Eye-to-hand calibration of a recording with the target on the flange at ``poses``
+    poses: the camera's error against the truth, the fit and the methods' spread into
+    ``out``."""
+    he = hand_eye_scene(robot, lambda w: make_checker(robot, spheres, w), rng, states=poses)
+    bag, truth = record_scene(he, robot, folder / "hand_eye.bag", rng, progress=progress)
+    gt = load_ground_truth(truth)
+    run = calibrate_bag(bag, mode="hand-eye", robot=robot, target=target_from_dict(gt["target"]))
+    dt, dr = transform_error(run.result.T_base_cam, np.asarray(gt["T_base_cam"]["matrix"]))
+    spread = run.result.spread
+    out.update(
+        handeye_err_mm=dt * 1e3,
+        handeye_err_deg=float(np.degrees(dr)),
+        handeye_rms_px=run.result.reprojection_rms_px,
+        handeye_frames_used=sum(f.used for f in run.result.frames),
+        handeye_methods_spread_mm=None if spread is None else spread.translation_mm,
+        handeye_methods_spread_deg=None if spread is None else spread.rotation_deg,
+    )
+
+
+def _speed(
+    scene: SyntheticScene,
+    T_base_cam: Array,
+    robot: RobotModel,
+    spheres: SphereModel,
+    folder: Path,
+    rng: np.random.Generator,
+    frames_n: int,
+    progress: Any,
+    out: dict[str, Any],
+) -> None:
+    """Perception's speed on a longer recording of ``scene``: the pipeline's own path (read
+    every frame, fuse, one cloud), and every frame turned into a cloud on its own."""
+    speed_scene = replace(scene, joint_states=np.repeat(scene.joint_states[:1], frames_n, axis=0))
+    bag, _ = record_scene(speed_scene, robot, folder / "speed.bag", rng, progress=progress)
+    checker = make_checker(robot, spheres)
+    robot_spheres = (checker.sphere_centers(scene.joint_states[:1])[0], checker.radii)
+    cfg = CloudCfg(max_frames=frames_n)
+    t0 = time.perf_counter()
+    frames = read_bag(bag, streams=("depth",))
+    scene_cloud(frames, T_base_cam, cfg, robot_spheres=robot_spheres, colored=False)
+    fused_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    frames = read_bag(bag, streams=("depth",))
+    depth = frames.depth
+    if depth is None:
+        raise PerceptionError(f"{bag}: the recorder wrote no depth")
+    for i in range(len(depth)):
+        single = replace(
+            frames,
+            depth=ImageStream(
+                depth.intrinsics, depth.images[i : i + 1], depth.stamps_ns[i : i + 1]
+            ),
+        )
+        scene_cloud(single, T_base_cam, cfg, robot_spheres=robot_spheres, colored=False)
+    single_s = time.perf_counter() - t0
+    out.update(
+        frames_per_s=len(depth) / fused_s,
+        single_frame_clouds_per_s=len(depth) / single_s,
+        speed_frames=len(depth),
+    )
 
 
 #: The eye-in-hand benchmark's truth: the camera on the flange, the board on the table.
