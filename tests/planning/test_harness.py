@@ -9,6 +9,7 @@ import pytest
 
 from gaide_core.errors import PlanningError
 from planning import harness
+from planning.checker import make_checker
 from planning.families import generate_problem
 from planning.family_names import split_seed
 from planning.harness import HarnessCfg, run_harness
@@ -17,6 +18,7 @@ from planning.neural.checkpoint import shipped_checkpoint
 from planning.path_check import check_path
 from planning.planner import PlanResult, PlanStatus
 from planning.problem import save_problems
+from planning.registry import make_planner
 from planning.robot_model import RobotModel
 from planning.sphere_model import SphereModel
 from tests.conftest import run_cli
@@ -37,6 +39,38 @@ def test_a_planted_colliding_path_is_rejected_with_its_edge(
         "does not start at the start and end at the goal"
         in check_path(wrong_end, p.start, p.goal, robot, spheres, p.world).detail
     )
+
+
+def test_malformed_paths_are_rejected_by_name(robot: RobotModel, spheres: SphereModel) -> None:
+    p = generate_problem("box", split_seed("test", 0), robot, spheres)
+
+    def detail(path: np.ndarray | None, goal: np.ndarray = p.goal) -> str:
+        check = check_path(path, p.start, goal, robot, spheres, p.world)
+        assert not check.ok
+        return check.detail
+
+    assert detail(None) == "no path"
+    assert detail(p.start[None]) == "no path"
+    nan = np.stack([p.start, np.full(robot.dof, np.nan), p.goal])
+    assert "non-finite" in detail(nan)
+    assert "shape (2, 5)" in detail(np.stack([p.start, p.goal])[:, :5])
+    assert "goals have shape (0, 6)" in detail(np.stack([p.start, p.goal]), np.zeros((0, 6)))
+
+
+def test_a_valid_path_passes_the_mesh_check_too(robot: RobotModel, spheres: SphereModel) -> None:
+    # The spheres cover the meshes, so a path the spheres pass keeps the meshes off the world:
+    # PyBullet's mesh check, every 2 centiradians, agrees.
+    p = generate_problem("box", split_seed("test", 0), robot, spheres)
+    res = make_planner("rrtc").plan(
+        make_checker(robot, spheres, p.world),
+        p.start,
+        p.goal,
+        budget_s=60.0,
+        rng=np.random.default_rng(0),
+    )
+    assert res.path is not None, res.detail
+    check = check_path(res.path, p.start, p.goal, robot, spheres, p.world, meshes=True)
+    assert check.ok, check.detail
 
 
 def test_a_planner_returning_a_colliding_path_counts_as_a_failure(
