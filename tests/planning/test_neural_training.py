@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -35,6 +36,28 @@ def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("data")
     generate(DATA, out, workers=2)
     return out
+
+
+@pytest.mark.parametrize(
+    ("change", "says"),
+    [
+        ({"families": ("kitchen",)}, "unknown families ['kitchen']"),
+        ({"families": ()}, "unknown families []"),
+        ({"categories": ("free2free", "free2free")}, "categories must be distinct"),
+        ({"categories": ("free2nowhere",)}, "categories must be distinct"),
+        ({"paths": 0}, "need paths >= 1 and shard_size >= 1"),
+        ({"shard_size": 0}, "need paths >= 1 and shard_size >= 1"),
+        ({"max_step": 1.5}, "need 0 < max_step <= 1 rad"),
+        ({"scene_points": 16}, "scene_points >= 64"),
+        ({"checker": "fcl"}, "unknown checker 'fcl'"),
+    ],
+)
+def test_data_settings_outside_their_limits_are_refused_before_any_work(
+    change: dict[str, object], says: str, tmp_path: Path
+) -> None:
+    with pytest.raises(ModelError, match=re.escape(says)):
+        generate(replace(DATA, **change), tmp_path / "never", workers=1)  # type: ignore[arg-type]
+    assert not (tmp_path / "never").exists()
 
 
 def test_the_data_set_holds_resampled_oracle_paths_and_resumes(
