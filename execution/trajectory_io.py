@@ -156,12 +156,18 @@ def read_csv_table(source: Path) -> tuple[list[str], Array]:
     if len(rows) < 2:
         raise ExecutionError(f"{source}: needs a header row and at least one data row")
     header = [h.strip() for h in rows[0]]
+    for line, row in enumerate(rows[1:], start=2):
+        if row and len(row) != len(header):
+            raise ExecutionError(
+                f"{source}: line {line} has {len(row)} values; every row needs "
+                f"{len(header)} values, as the header"
+            )
     try:
         data = np.array([[float(v) for v in row] for row in rows[1:] if row], dtype=float)
     except ValueError as err:
         raise ExecutionError(f"{source}: a value is not a number ({err})") from err
-    if data.ndim != 2 or data.shape[1] != len(header):
-        raise ExecutionError(f"{source}: every row needs {len(header)} values, as the header")
+    if data.ndim != 2:  # blank lines alone
+        raise ExecutionError(f"{source}: needs a header row and at least one data row")
     if not np.all(np.isfinite(data)):
         raise ExecutionError(f"{source}: contains NaN or inf")
     return header, data

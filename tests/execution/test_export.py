@@ -138,14 +138,32 @@ def test_an_existing_output_is_replaced_whole(small_traj: TimedTrajectory, tmp_p
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ros2"]
 
 
-def test_a_bad_trajectory_file_is_refused(tmp_path: Path) -> None:
-    bad = tmp_path / "t.csv"
-    bad.write_text("t,a_pos,a_vel\n0,1,2\n")
-    with pytest.raises(ExecutionError, match="missing columns"):
-        read_trajectory(bad)
-    bad.write_text("t,a_pos,a_vel,a_acc\n0,1,2,3\n0.01,1,2,3\n0.05,1,2,3\n")
-    with pytest.raises(ExecutionError, match="equal steps"):
-        read_trajectory(bad)
+#: name, contents (None: no file) -> what the refusal says
+BAD_TRAJECTORIES = {
+    "t.csv": (None, "does not exist"),
+    "t.txt": ("t,a_pos\n0,1\n", "must be a .csv or .json file"),
+    "header-only.csv": ("t,a_pos,a_vel,a_acc\n", "a header row and at least one data row"),
+    "no-t.csv": ("x,a_pos,a_vel,a_acc\n0,1,0,0\n", "the first column must be 't'"),
+    "no-pos.csv": ("t,a_vel\n0,0\n0.01,0\n", "no '<joint>_pos' columns"),
+    "no-acc.csv": ("t,a_pos,a_vel\n0,1,2\n", "missing columns ['a_acc']"),
+    "text.csv": ("t,a_pos,a_vel,a_acc\n0,one,0,0\n", "a value is not a number"),
+    "short-row.csv": ("t,a_pos,a_vel,a_acc\n0,1,0,0\n0.01,1\n", "every row needs 4 values"),
+    "nan.csv": ("t,a_pos,a_vel,a_acc\n0,nan,0,0\n0.01,1,0,0\n", "contains NaN or inf"),
+    "one-sample.csv": ("t,a_pos,a_vel,a_acc\n0,1,0,0\n", "needs at least 2 samples"),
+    "uneven.csv": ("t,a_pos,a_vel,a_acc\n0,1,2,3\n0.01,1,2,3\n0.05,1,2,3\n", "equal steps"),
+    "moving.csv": ("t,a_pos,a_vel,a_acc\n0,0,0,0\n0.01,0.01,1,0\n", "ends moving"),
+    "not-ours.json": ('{"t": [0, 0.01]}', "not a trajectory file"),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_TRAJECTORIES))
+def test_a_bad_trajectory_file_is_refused_by_name(name: str, tmp_path: Path) -> None:
+    contents, says = BAD_TRAJECTORIES[name]
+    path = tmp_path / name
+    if contents is not None:
+        path.write_text(contents)
+    with pytest.raises(ExecutionError, match=re.escape(says)):
+        read_trajectory(path)
 
 
 # -- controller programs: URScript and the ros2_control goal ---------------------------------
