@@ -97,6 +97,28 @@ def _vector(raw: Any, name: str, source: Path) -> Array | None:
     return arr
 
 
+def _mapping(raw: Any, name: str, source: Path) -> dict[str, Any]:
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{source}: {name} must be a mapping, got {raw!r}")
+    return raw
+
+
+def _triple(raw: Any, name: str, source: Path) -> Array:
+    arr = _vector(raw, name, source)
+    if arr is None or arr.shape != (3,):
+        raise ConfigError(f"{source}: {name} must be 3 numbers, got {raw!r}")
+    return arr
+
+
+def _number(raw: Any, name: str, unit: str, source: Path) -> float:
+    try:
+        return float(raw)
+    except (TypeError, ValueError) as err:
+        raise ConfigError(f"{source}: {name} must be a number ({unit}), got {raw!r}") from err
+
+
 def load_robot_config(path: str | Path | None = None) -> RobotConfig:
     """Load a robot config YAML (default: the UR5 of example-robot-data)."""
     source = Path(path) if path is not None else DEFAULT_CONFIG
@@ -123,8 +145,8 @@ def load_robot_config(path: str | Path | None = None) -> RobotConfig:
         value = raw.get(key)
         return None if value is None else resolve_uri(str(value), base_dir, package_dirs)
 
-    base = raw.get("base_pose") or {}
-    limits = raw.get("joint_limits") or {}
+    base = _mapping(raw.get("base_pose"), "base_pose", source)
+    limits = _mapping(raw.get("joint_limits"), "joint_limits", source)
     pairs = raw.get("ignored_link_pairs") or []
     if not all(isinstance(p, (list, tuple)) and len(p) == 2 for p in pairs):
         raise ConfigError(f"{source}: ignored_link_pairs must be a list of [link_a, link_b]")
@@ -151,14 +173,19 @@ def load_robot_config(path: str | Path | None = None) -> RobotConfig:
         srdf=opt_path("srdf"),
         spheres=opt_path("spheres"),
         end_effector=str(raw.get("end_effector", "tool0")),
-        T_world_base=from_xyz_rpy(base.get("xyz", [0, 0, 0]), base.get("rpy", [0, 0, 0])),
+        T_world_base=from_xyz_rpy(
+            _triple(base.get("xyz", [0, 0, 0]), "base_pose.xyz", source),
+            _triple(base.get("rpy", [0, 0, 0]), "base_pose.rpy", source),
+        ),
         lower=_vector(limits.get("lower"), "joint_limits.lower", source),
         upper=_vector(limits.get("upper"), "joint_limits.upper", source),
         velocity_limits=_vector(raw.get("velocity_limits"), "velocity_limits", source),
         acceleration_limits=_vector(raw.get("acceleration_limits"), "acceleration_limits", source),
         jerk_limits=_vector(raw.get("jerk_limits"), "jerk_limits", source),
-        collision_margin=float(raw.get("collision_margin", 0.005)),
-        edge_resolution=float(raw.get("edge_resolution", 0.01)),
+        collision_margin=_number(
+            raw.get("collision_margin", 0.005), "collision_margin", "m", source
+        ),
+        edge_resolution=_number(raw.get("edge_resolution", 0.01), "edge_resolution", "m", source),
         ignored_link_pairs=tuple((str(a), str(b)) for a, b in pairs),
         world_ignored_links=tuple(str(v) for v in raw.get("world_ignored_links") or []),
         named_configurations=named,

@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -127,3 +128,39 @@ def test_config_errors(tmp_path: Path) -> None:
     robot_cfg = _config(tmp_path, str(urdf), "jerk_limits: [1, 2]\n")
     with pytest.raises(RobotModelError, match="jerk_limits has 2 values; the robot has 1 joints"):
         load_robot(robot_cfg)
+
+
+#: extra YAML lines of a robot config -> what its refusal says
+BAD_CONFIG_LINES = {
+    "edge_resolution: 0\n": "edge_resolution must be > 0 m",
+    "velocity_limits: [-1]\n": "velocity_limits must be finite and > 0",
+    "acceleration_limits: [[1, 2]]\n": "acceleration_limits must be a flat list",
+    "jerk_limits: [fast]\n": "jerk_limits must be a list of numbers",
+    "ignored_link_pairs: [[a, b, c]]\n": "ignored_link_pairs must be a list of [link_a, link_b]",
+    "named_configurations: {rest: null}\n": "named_configurations.rest has no joint values",
+    "locked_joints: [j1]\n": "locked_joints must map joint names to values",
+    "locked_joints: {j1: open}\n": "locked_joints.j1 must be a number (rad or m), got 'open'",
+    "srdf: package://nowhere/arm.srdf\n": "cannot resolve package://nowhere/arm.srdf",
+    "base_pose: {xyz: [0, 0], rpy: [0, 0, 0]}\n": "base_pose.xyz must be 3 numbers",
+    "base_pose: [0, 0, 0]\n": "base_pose must be a mapping",
+    "joint_limits: [-1, 1]\n": "joint_limits must be a mapping",
+    "collision_margin: five mm\n": "collision_margin must be a number (m), got 'five mm'",
+}
+
+
+@pytest.mark.parametrize("lines", list(BAD_CONFIG_LINES))
+def test_robot_config_values_outside_their_limits_are_refused_by_name(
+    lines: str, tmp_path: Path
+) -> None:
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(ARM.format(geometry='<box size="0.1 0.1 0.1"/>'))
+    with pytest.raises(ConfigError, match=re.escape(BAD_CONFIG_LINES[lines])):
+        load_robot_config(_config(tmp_path, str(urdf), lines))
+
+
+def test_a_robot_config_that_is_not_a_mapping_with_a_urdf_is_refused(tmp_path: Path) -> None:
+    for text in ("- urdf: arm.urdf\n", "srdf: arm.srdf\n"):
+        path = tmp_path / "robot.yaml"
+        path.write_text(text)
+        with pytest.raises(ConfigError, match="must be a mapping with at least 'urdf'"):
+            load_robot_config(path)
