@@ -10,6 +10,7 @@ Stored in cuRobo's ``collision_spheres`` YAML layout so that users can bring the
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -117,6 +118,11 @@ class SphereModel:
                     raise RobotModelError(
                         f"sphere file {source}: {link}[{i}] center needs 3 values"
                     )
+                if not all(map(math.isfinite, [*c, r])):
+                    raise RobotModelError(
+                        f"sphere file {source}: {link}[{i}] has a value that is not finite "
+                        f"(center {c}, radius {r}): a NaN sphere would never collide"
+                    )
                 if r <= 0:
                     # cuRobo marks unused slots with negative radii; they carry no geometry.
                     continue
@@ -163,7 +169,21 @@ class SphereModel:
                 if sphere is None:
                     continue
                 origin = col.find("origin")
-                xyz = _floats(origin.attrib.get("xyz", "0 0 0") if origin is not None else "0 0 0")
+                try:
+                    xyz = _floats(
+                        origin.attrib.get("xyz", "0 0 0") if origin is not None else "0 0 0"
+                    )
+                    radius = float(sphere.attrib["radius"])
+                except (KeyError, ValueError) as err:
+                    raise RobotModelError(
+                        f"spherized URDF {source}: link '{name}' has a sphere without a numeric "
+                        f"radius and origin xyz ({err})"
+                    ) from err
+                if len(xyz) != 3 or not all(map(math.isfinite, [*xyz, radius])) or radius <= 0:
+                    raise RobotModelError(
+                        f"spherized URDF {source}: link '{name}' has a sphere of radius {radius} "
+                        f"at {xyz}: it needs a finite radius > 0 m and 3 finite coordinates"
+                    )
                 frame = model.frames[model.getFrameId(name)]
                 joint_name = model.names[frame.parentJoint]
                 p_joint = frame.placement.act(np.asarray(xyz, float))
@@ -186,7 +206,7 @@ class SphereModel:
                     p_link = (np.linalg.inv(T_joint_link) @ np.append(p_joint, 1.0))[:3]
                 links.append(target)
                 centers.append(p_link)
-                radii.append(float(sphere.attrib["radius"]))
+                radii.append(radius)
         if not links:
             raise RobotModelError(f"spherized URDF {source} has no <sphere> collision elements")
         return SphereModel(tuple(links), np.asarray(centers), np.asarray(radii))

@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -81,6 +82,8 @@ def test_curobo_nested_layout_and_unused_slots(tmp_path: Path) -> None:
         ("collision_spheres:\n  l: [{center: [0, 0], radius: 1}]\n", "center needs 3 values"),
         ("collision_spheres:\n  l: [{radius: 1}]\n", "needs center"),
         ("collision_spheres: {a: [}", "not valid YAML"),
+        ("collision_spheres:\n  l: [{center: [0, 0, 0], radius: .nan}]\n", "not finite"),
+        ("collision_spheres:\n  l: [{center: [0, .inf, 0], radius: 0.1}]\n", "not finite"),
     ],
 )
 def test_bad_sphere_files(tmp_path: Path, text: str, message: str) -> None:
@@ -113,6 +116,23 @@ def test_third_party_spherized_urdf_imports(robot: RobotModel, rng: np.random.Ge
     gripper = [i for i, link in enumerate(model.links) if link in ("ee_link", "wrist_3_link")]
     ahead = (centers[gripper] - flange[:3, 3]) @ flange[:3, 2]
     assert ahead.max() > 0.1  # Robotiq fingers reach well past the flange
+
+
+@pytest.mark.parametrize(
+    ("radius", "says"),
+    [("nan", "needs a finite radius > 0 m"), ("-0.05", "needs a finite radius > 0 m"),
+     ("wide", "without a numeric radius")],
+)  # fmt: skip
+def test_a_spherized_urdf_sphere_without_a_size_is_refused(
+    robot: RobotModel, tmp_path: Path, radius: str, says: str
+) -> None:
+    text = shared_data("robots/vamp_ur5_spherized.urdf").read_text()
+    first = re.search(r'<sphere radius="[^"]*"', text)
+    assert first is not None
+    bad = tmp_path / "bad.urdf"
+    bad.write_text(text[: first.start()] + f'<sphere radius="{radius}"' + text[first.end() :])
+    with pytest.raises(RobotModelError, match=says):
+        SphereModel.from_spherized_urdf(bad, robot)
 
 
 def test_spherized_urdf_spheres_follow_its_own_kinematics(
