@@ -8,10 +8,14 @@ A scene spec is one of:
 - a ``.ply`` point cloud in the base frame (``gaide perceive``'s output);
 - a problem file (``.yaml``/``.yml``/``.json``, :mod:`planning.problem`): its only problem,
   or ``FILE#NAME`` for the problem named NAME.
+
+A path file (``plan.json``) names its scene file relative to its own folder
+(:func:`relative_to`), so an output folder can move; :func:`next_to` finds it again.
 """
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,6 +44,37 @@ class Scene:
     world: World | None  # for the collision checker; None: no obstacles
     primitives: PrimitiveWorld | None = None  # for the simulator
     cloud: Array | None = None  # (N, 3) m, base frame, for the simulator
+
+
+_FILE_SUFFIXES = (".ply", ".yaml", ".yml", ".json")
+
+
+def _file_part(spec: str) -> tuple[str, str] | None:
+    """(file, '#NAME' or '') of a spec that names a file, else None."""
+    file_part, hash_, name = spec.strip().partition("#")
+    if Path(file_part).suffix.lower() not in _FILE_SUFFIXES:
+        return None
+    return file_part, hash_ + name
+
+
+def relative_to(spec: str, folder: str | os.PathLike[str]) -> str:
+    """``spec`` as a path file in ``folder`` stores it: a scene file's path relative to that
+    folder (other specs unchanged)."""
+    parts = _file_part(spec)
+    if parts is None:
+        return spec
+    return os.path.relpath(Path(parts[0]).resolve(), Path(folder).resolve()) + parts[1]
+
+
+def next_to(spec: str, folder: str | os.PathLike[str]) -> str:
+    """A path file's scene ``spec`` for loading: a relative scene file found in ``folder``
+    (the path file's own) is taken from there; otherwise the spec as written (relative to
+    the working directory, as older path files name it)."""
+    parts = _file_part(spec)
+    if parts is None or Path(parts[0]).is_absolute():
+        return spec
+    beside = Path(folder) / parts[0]
+    return str(beside) + parts[1] if beside.is_file() else spec
 
 
 def load_scene(spec: str, robot: RobotModel, spheres: SphereModel) -> Scene:

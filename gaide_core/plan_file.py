@@ -6,7 +6,8 @@ reads either. One schema, one writer, one reader::
     {
       "planner": "rrtc",                 # who planned it
       "status": "success",
-      "scene": "shelf_1 seed 3",         # what it was planned in (a scene spec or a file)
+      "scene": "shelf_1 seed 3",         # what it was planned in: a scene spec, or a file
+                                         # relative to this file's folder ("scene.ply")
       "joint_names": ["shoulder_pan_joint", ...],
       "time_s": 0.012,                   # planning time of the attempt that succeeded
       "cost_rad": 3.41,                  # joint-space length

@@ -17,7 +17,7 @@ from execution.timing_cfg import TimingCfg, TimingMode
 from execution.urscript import UrScriptCfg, UrScriptMode, ur_order
 from gaide.common import add_checker_option, print_table, robot_and_spheres, write_json
 from gaide.scene_spec import HELP as SCENE_HELP
-from gaide.scene_spec import Scene, load_scene
+from gaide.scene_spec import Scene, load_scene, next_to
 from gaide_core.errors import ConfigError, ExecutionError, TimingError
 from gaide_core.plan_file import PlanFile, read_plan
 
@@ -133,13 +133,14 @@ def _floats(text: str | None, what: str) -> tuple[float, ...] | None:
 def _scene_for(
     args: argparse.Namespace, plan: PlanFile, source: str, robot: Any, spheres: Any
 ) -> Scene:
-    spec = args.scene or plan.scene
-    if not spec:
+    if args.scene:
+        return load_scene(args.scene, robot, spheres)
+    if not plan.scene:
         raise TimingError(
             f"{source} names no scene (key 'scene'); give --scene ({SCENE_HELP}) so that "
             "the path can be checked and blends re-checked"
         )
-    return load_scene(str(spec), robot, spheres)
+    return load_scene(next_to(plan.scene, Path(source).parent), robot, spheres)
 
 
 def cmd_time(args: argparse.Namespace) -> int:

@@ -271,6 +271,7 @@ def _configuration(text: str | None, robot: Any, what: str) -> np.ndarray:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
+    from gaide.scene_spec import relative_to
     from planning.checker import make_checker
     from planning.distance_field import CloudWorld
     from planning.families import generate_problem
@@ -303,7 +304,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         PlanFile(
             planner=result.planner,
             status=result.status.value,
-            scene=source,
+            scene=relative_to(source, Path(args.output).parent),
             joint_names=robot.joint_names,
             time_s=result.time_s,
             cost_rad=result.cost,

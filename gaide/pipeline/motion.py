@@ -124,7 +124,7 @@ def planning_stage(
     plan = PlanFile(
         planner=res.planner,
         status=res.status.value,
-        scene=str(runner.path("scene.ply")),
+        scene="scene.ply",  # beside plan.json in the output folder (scene_spec.next_to)
         joint_names=setup.robot.joint_names,
         time_s=res.time_s,
         cost_rad=res.cost,

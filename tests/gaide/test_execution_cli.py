@@ -45,6 +45,33 @@ def _path_file(tmp_path: Path, robot: RobotModel, path: np.ndarray, scene: str) 
     return out
 
 
+def test_a_path_file_finds_its_scene_file_beside_it(tmp_path: Path, robot: RobotModel) -> None:
+    # `gaide run` and `gaide plan` name the scene file relative to the path file's folder, so
+    # `gaide time` finds it from any working directory (here the repository root, where no
+    # such file is) and the folder can move.
+    path = robot.named_configuration("home") + np.array(OFFSETS)
+    q = [float(v) for v in path[0]]
+    problem = {"problems": [{"name": "cell", "start": q, "goal": q, "obstacles": []}]}
+    (tmp_path / "cell.yaml").write_text(yaml.safe_dump(problem))
+    src = _path_file(tmp_path, robot, path, "cell.yaml")
+    proc = run_cli("time", str(src), "-o", str(tmp_path / "t.csv"))
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "t.csv").is_file()
+
+
+def test_relative_scene_names_round_trip() -> None:
+    from gaide.scene_spec import next_to, relative_to
+
+    assert relative_to("tabletop seed 3", "/a/b") == "tabletop seed 3"
+    assert relative_to("/a/c/scene.ply", "/a/b") == "../c/scene.ply"
+    assert relative_to("/a/b/cell.yaml#first", "/a/b") == "cell.yaml#first"
+    assert next_to("none", "/a/b") == "none"
+    assert next_to("/abs/scene.ply", "/a/b") == "/abs/scene.ply"
+    # a relative file that is not beside the path file stays as written (the working
+    # directory's, as older path files name it)
+    assert next_to("out/demo/scene.ply", "/nonexistent") == "out/demo/scene.ply"
+
+
 def test_time_simulate_and_compare(tmp_path: Path, robot: RobotModel) -> None:
     path = robot.named_configuration("home") + np.array(OFFSETS)
     src = _path_file(tmp_path, robot, path, "none")
