@@ -269,6 +269,18 @@ CASES: dict[str, Case] = {
         "raise planning.world_voxel",
         ("out/plan.json",),
     ),
+    "oracle-bench-no-problems": Case(
+        lambda t, _: ["bench", "oracle", "--families", "box", "--problems", "0"],
+        7,
+        "need --problems >= 1",
+    ),
+    "data-generate-no-paths": Case(
+        # refused before the progress bar starts, so its line is the only one
+        lambda t, _: ["data", "generate", "--paths", "0", "--out", str(t / "data")],
+        10,
+        "need paths >= 1",
+        ("data",),
+    ),
     "setup-failure-over-an-earlier-run": Case(
         lambda t, made: [
             "run",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -263,11 +264,17 @@ def cmd_oracle(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
 
+    from gaide_core.errors import PlanningError
     from planning.checker import make_checker
     from planning.families import generate_problem
     from planning.family_names import parse_families, split_seed
     from planning.oracle import OracleCfg, oracle_consistency, oracle_quality
 
+    if args.problems < 1 or not (0 < args.budget < math.inf):
+        raise PlanningError(
+            f"need --problems >= 1 and a --budget of seconds > 0; got {args.problems}, "
+            f"{args.budget}"
+        )
     robot, spheres = robot_and_spheres(args.robot)
     keys = ("runs", "refine", "shortcuts", "tie", "clearance", "clearance_rule")
     chosen = {k: getattr(args, k) for k in keys}

@@ -161,6 +161,7 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
             "is budgeted by work (--oracle-runs, --oracle-iterations, --oracle-shortcuts)",
             file=sys.stderr,
         )
+    cfg.check()  # before the progress bar: a bad setting is the only line printed
     t0 = time.perf_counter()
     bar = tqdm(desc="shards", unit="shard")
 
