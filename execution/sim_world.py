@@ -16,14 +16,17 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
-import pybullet as pb
 from scipy.spatial.transform import Rotation
 
 from gaide_core.errors import ExecutionError
+from gaide_core.native_output import quiet_native_output
 from gaide_core.types import Array
 from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere
 from planning.robot_config import resolve_uri
 from planning.robot_model import RobotModel
+
+with quiet_native_output():  # its import prints a build-time banner on stdout
+    import pybullet as pb
 
 log = logging.getLogger(__name__)
 
