@@ -161,8 +161,18 @@ def read_urdf_tree(urdf: Path) -> UrdfTree:
                 raise RobotModelError(f"URDF {urdf}: joint '{name}' names unknown link '{link}'")
         parent_of[child] = name
         limit = el.find("limit")
-        lower = float(limit.attrib.get("lower", 0.0)) if limit is not None else 0.0
-        upper = float(limit.attrib.get("upper", 0.0)) if limit is not None else 0.0
+        if limit is None and kind in ("revolute", "prismatic"):
+            raise RobotModelError(
+                f"URDF {urdf}: joint '{name}' is {kind} without a <limit> element; URDF asks "
+                "one of every revolute and prismatic joint (lower, upper, velocity, effort)"
+            )
+        try:
+            lower = float(limit.attrib.get("lower", 0.0)) if limit is not None else 0.0
+            upper = float(limit.attrib.get("upper", 0.0)) if limit is not None else 0.0
+        except ValueError as err:
+            raise RobotModelError(
+                f"URDF {urdf}: joint '{name}' has a <limit> that is not numbers ({err})"
+            ) from err
         joints.append(UrdfJoint(name, kind, parent, child, lower, upper))
     roots = [link for link in links if link not in parent_of]
     if len(roots) != 1:

@@ -31,6 +31,9 @@ BILLION_LAUGHS = "\n".join(
 )
 
 
+_LIMIT = '<limit lower="-3" upper="3" velocity="2" effort="50"/>'
+
+
 def _arm_urdf(joint_b: str = "revolute", extra: str = "", mesh: str = "") -> str:
     """A two-link arm; ``joint_b`` the second joint's type, ``extra`` more elements."""
     geometry = f'<mesh filename="{mesh}"/>' if mesh else '<box size="0.1 0.1 0.3"/>'
@@ -39,7 +42,7 @@ def _arm_urdf(joint_b: str = "revolute", extra: str = "", mesh: str = "") -> str
         '<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" '
         'ixz="0" iyz="0"/></inertial></link>'
     )
-    limit = '<limit lower="-3" upper="3" velocity="2" effort="50"/>'
+    limit = _LIMIT
     return (
         '<robot name="arm">'
         + "".join(link.format(n) for n in ("base", "a", "b"))
@@ -86,6 +89,20 @@ CASES: dict[str, Case] = {
         ),
         6,
         "closed chain: link 'b' is the child of joints 'jb' and 'jc'",
+        SETUP_OUTPUTS,
+    ),
+    "setup-revolute-without-limit": Case(
+        lambda t, _: _setup(
+            t, _arm_urdf().replace(_LIMIT + "</joint></robot>", "</joint></robot>")
+        ),
+        6,
+        "joint 'jb' is revolute without a <limit> element",
+        SETUP_OUTPUTS,
+    ),
+    "setup-limit-not-a-number": Case(
+        lambda t, _: _setup(t, _arm_urdf().replace('lower="-3"', 'lower="low"', 1)),
+        6,
+        "joint 'ja' has a <limit> that is not numbers",
         SETUP_OUTPUTS,
     ),
     "setup-missing-mesh": Case(
