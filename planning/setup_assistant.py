@@ -345,10 +345,16 @@ def _named_configurations(
     named: dict[str, Array] = {}
     if srdf is not None:
         for state in srdf.iter("group_state"):
-            values = {
-                el.attrib.get("name", ""): float(el.attrib.get("value", "nan"))
-                for el in state.findall("joint")
-            }
+            values = {}
+            for el in state.findall("joint"):
+                name, value = el.attrib.get("name", ""), el.attrib.get("value", "nan")
+                try:
+                    values[name] = float(value)
+                except ValueError as err:
+                    raise RobotModelError(
+                        f"SRDF group_state '{state.attrib.get('name', '?')}': joint '{name}' "
+                        f"has value {value!r}, not a number (rad or m)"
+                    ) from err
             if all(n in values for n in robot.joint_names):
                 q = np.array([values[n] for n in robot.joint_names])
                 if np.all(np.isfinite(q)) and robot.within_limits(q[None])[0]:

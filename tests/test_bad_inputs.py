@@ -117,6 +117,25 @@ CASES: dict[str, Case] = {
         "arm.srdf does not exist",
         SETUP_OUTPUTS,
     ),
+    "setup-srdf-state-not-a-number": Case(
+        lambda t, _: _setup(
+            t,
+            _arm_urdf(),
+            "--srdf",
+            str(
+                _write(
+                    t,
+                    "arm.srdf",
+                    '<robot name="arm"><group_state name="home" group="arm">'
+                    '<joint name="ja" value="zero"/><joint name="jb" value="0"/></group_state>'
+                    "</robot>",
+                )
+            ),
+        ),
+        6,
+        "SRDF group_state 'home': joint 'ja' has value 'zero', not a number",
+        SETUP_OUTPUTS,
+    ),
     "setup-lock-unknown-joint": Case(
         lambda t, _: _setup(t, _arm_urdf(), "--lock", "gripper=0.02"),
         6,
