@@ -270,8 +270,11 @@ def _read(source: Path) -> Any:
 
 
 def save_problems(path: str | Path, problems: list[Problem]) -> None:
-    """Write problems as YAML (or JSON for a .json path), atomically."""
+    """Write problems as YAML (or JSON for a .json path), atomically; at least one, as
+    :func:`load_problems` reads."""
     target = Path(path)
+    if not problems:
+        raise PlanningError(f"{target}: no problems to write; a problem file holds at least one")
     payload = {"problems": [p.to_dict() for p in problems]}
     text = (
         json.dumps(payload, indent=1)

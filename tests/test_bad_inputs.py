@@ -317,6 +317,21 @@ CASES: dict[str, Case] = {
         "need paths >= 1",
         ("data",),
     ),
+    "scenes-export-nothing": Case(
+        lambda t, _: [
+            "scenes",
+            "export",
+            "--families",
+            "box",
+            "--problems",
+            "0",
+            "-o",
+            str(t / "s.yaml"),
+        ],
+        7,
+        "no problems to write",
+        ("s.yaml",),
+    ),
     "setup-failure-over-an-earlier-run": Case(
         lambda t, made: [
             "run",
