@@ -107,16 +107,19 @@ def _mapping(raw: Any, name: str, source: Path) -> dict[str, Any]:
 
 def _triple(raw: Any, name: str, source: Path) -> Array:
     arr = _vector(raw, name, source)
-    if arr is None or arr.shape != (3,):
-        raise ConfigError(f"{source}: {name} must be 3 numbers, got {raw!r}")
+    if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ConfigError(f"{source}: {name} must be 3 finite numbers, got {raw!r}")
     return arr
 
 
 def _number(raw: Any, name: str, unit: str, source: Path) -> float:
     try:
-        return float(raw)
+        value = float(raw)
     except (TypeError, ValueError) as err:
         raise ConfigError(f"{source}: {name} must be a number ({unit}), got {raw!r}") from err
+    if not np.isfinite(value):  # a NaN margin or resolution would pass every check after
+        raise ConfigError(f"{source}: {name} must be a finite number ({unit}), got {raw!r}")
+    return value
 
 
 def load_robot_config(path: str | Path | None = None) -> RobotConfig:
