@@ -80,6 +80,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         ("--tie", float, "label the refined run within this share of the shortest that leaves "
          "the start most nearly toward the goal"),
         ("--clearance", float, "extra clearance (m, up to 0.05) each sphere of the label keeps, at most half its own at the ends beyond the margin"),
+        ("--band", int, "L-BFGS iterations of the elastic band that pulls each label taut (0: none)"),
     ):  # fmt: skip
         ora.add_argument(flag, type=kind, help=f"{what} (default: the data's oracle)")
     ora.add_argument(
@@ -276,7 +277,7 @@ def cmd_oracle(args: argparse.Namespace) -> int:
             f"{args.budget}"
         )
     robot, spheres = robot_and_spheres(args.robot)
-    keys = ("runs", "refine", "shortcuts", "tie", "clearance", "clearance_rule")
+    keys = ("runs", "refine", "shortcuts", "tie", "clearance", "clearance_rule", "band")
     chosen = {k: getattr(args, k) for k in keys}
     cfg = OracleCfg(**{k: v for k, v in chosen.items() if v is not None})
     rows, runs = [], []

@@ -61,6 +61,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="limit each sphere's extra clearance by its own at the ends (sphere, the "
         "default) or all by the tightest sphere's (tightest: sets made before the rule)",
     )
+    gen.add_argument(
+        "--oracle-band",
+        type=int,
+        help="L-BFGS iterations of the elastic band that pulls each label taut (500; 0: "
+        "none, as the sets made before it)",
+    )
     # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
     # the same labels under load). The old flags are still accepted and say so.
     for old_flag in ("--oracle-budget", "--oracle-rescue"):
@@ -147,6 +153,7 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
                     ("tie", args.oracle_tie),
                     ("clearance", args.oracle_clearance),
                     ("clearance_rule", args.oracle_clearance_rule),
+                    ("band", args.oracle_band),
                 )
                 if value is not None
             }

@@ -108,13 +108,14 @@ def generate(
     done: dict[str, dict[str, Any]] = {}
     if manifest_path.exists():
         old = read_manifest(out)
-        # Manifests written before the oracle had a tie share or an extra clearance were made
-        # without them, and those before the per-sphere clearance rule with the tightest
-        # sphere's (which only a clearance makes a difference to).
+        # Manifests written before the oracle had a tie share, an extra clearance or the band
+        # were made without them, and those before the per-sphere clearance rule with the
+        # tightest sphere's (which only a clearance makes a difference to).
         old_oracle = old["settings"].get("oracle")
         if isinstance(old_oracle, dict):
             old_oracle.setdefault("tie", 0.0)
             old_oracle.setdefault("clearance", 0.0)
+            old_oracle.setdefault("band", 0)
             rule = "tightest" if old_oracle["clearance"] > 0 else "sphere"
             old_oracle.setdefault("clearance_rule", rule)
         if old["settings"] != settings or old["format"] != FORMAT:

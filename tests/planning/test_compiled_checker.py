@@ -575,3 +575,42 @@ def test_cached_kernels_are_dropped_when_any_source_of_the_package_changes(
     assert drop_stale_kernels(tmp_path)
     assert not any(f.exists() for f in kernel)
     assert bytecode.exists()
+
+
+@pytest.mark.parametrize("kind", ["primitives", "cloud"])
+def test_the_band_penalty_is_the_reference_clearances_shortfall_and_its_gradient(
+    robot: RobotModel, spheres: SphereModel, worlds: dict[str, object], kind: str
+) -> None:
+    # planning.compiled.band_kernel against the numpy reference's clearances and gaps.
+    from planning.compiled.band_kernel import penalty_gradient
+
+    ref, fast = _both(robot, spheres, worlds[kind])
+    rng = np.random.default_rng(11)
+    Q = _near(ref, rng, 60)
+    need, need_self = ref.margin + 0.03, 0.03
+    I, F, field = fast.kernel_tables().args()  # noqa: E741 (layout names)
+    moving = ref._displacement.sum(axis=1) > 0  # spheres some joint moves
+    grad = np.zeros_like(Q)
+    for b, q in enumerate(Q):
+        world = np.maximum(0.0, need - ref.sphere_clearance(q[None])[0])[moving]
+        c = ref.sphere_centers(q[None])[0]
+        i, j = ref.pairs.T
+        gaps = np.linalg.norm(c[i] - c[j], axis=1) - ref.radii[i] - ref.radii[j]
+        expected = world @ world + np.sum(np.maximum(0.0, need_self - gaps) ** 2)
+        got = penalty_gradient(I, F, field, q[None], need, need_self, grad[b : b + 1])
+        assert got == pytest.approx(expected, rel=1e-9, abs=1e-15)
+    assert np.count_nonzero(grad.any(axis=1)) > 30  # most rows are near the world
+    if kind == "cloud":
+        return  # a lattice's distance jumps between cells: no finite differences across them
+    # the gradient against central differences of the penalty in joint space
+    h, one = 1e-6, np.zeros((1, Q.shape[1]))
+    for b, q in enumerate(Q[:20]):
+        fd = [
+            (
+                penalty_gradient(I, F, field, (q + h * e)[None], need, need_self, one)
+                - penalty_gradient(I, F, field, (q - h * e)[None], need, need_self, one)
+            )
+            / (2 * h)
+            for e in np.eye(len(q))
+        ]
+        np.testing.assert_allclose(grad[b], fd, rtol=1e-4, atol=1e-7)

@@ -26,8 +26,12 @@ TINY = ModelCfg(
     hidden=32, heads=2, ff=64, enc_layers=2, dec_layers=1, scene_points=256, scene_tokens=8
 )
 # Two scenes (a TableTop and a Box), each with its four categories' start/goal pairs.
+# No band (OracleCfg.band): the training tests below are sized for these labels.
 DATA = DataCfg(
-    families=("tabletop", "box"), paths=8, shard_size=4, oracle=OracleCfg(runs=2, shortcuts=50)
+    families=("tabletop", "box"),
+    paths=8,
+    shard_size=4,
+    oracle=OracleCfg(runs=2, shortcuts=50, band=0),
 )
 
 
@@ -97,19 +101,19 @@ def test_the_data_set_holds_resampled_oracle_paths_and_resumes(
 def test_a_manifest_from_before_the_oracle_tie_share_still_resumes(
     data_dir: Path, tmp_path: Path
 ) -> None:
-    # Data made before OracleCfg.tie and .clearance existed was labelled without them (0).
+    # Data made before OracleCfg.tie, .clearance and .band existed was labelled without
+    # them (0).
     for f in data_dir.iterdir():
         (tmp_path / f.name).write_bytes(f.read_bytes())
     manifest = json.loads((tmp_path / "manifest.json").read_text())
-    del manifest["settings"]["oracle"]["tie"]
-    del manifest["settings"]["oracle"]["clearance"]
-    del manifest["settings"]["oracle"]["clearance_rule"]
+    for key in ("tie", "clearance", "clearance_rule", "band"):
+        del manifest["settings"]["oracle"][key]
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
     (tmp_path / "shard-00001.npz").unlink()
     assert generate(DATA, tmp_path, workers=1)["complete"]
-    tied = replace(DATA, oracle=replace(DATA.oracle, tie=0.05))
-    with pytest.raises(ModelError, match="other settings"):
-        generate(tied, tmp_path, workers=1)
+    for other in (replace(DATA.oracle, tie=0.05), replace(DATA.oracle, band=500)):
+        with pytest.raises(ModelError, match="other settings"):
+            generate(replace(DATA, oracle=other), tmp_path, workers=1)
     # One made with a clearance but before its per-sphere rule had the tightest sphere's.
     cleared = replace(DATA, oracle=replace(DATA.oracle, clearance=0.02))
     manifest["settings"]["oracle"]["clearance"] = 0.02

@@ -21,7 +21,8 @@ from tests.planning.ompl_problems import (
     wall_problem,
 )
 
-QUICK = OracleCfg(runs=3, iterations=5_000, shortcuts=100, rescue_iterations=0)
+# No band: these tests are about the runs and the choice among them (the band has its own).
+QUICK = OracleCfg(runs=3, iterations=5_000, shortcuts=100, rescue_iterations=0, band=0)
 
 
 @pytest.fixture(scope="module")
@@ -108,7 +109,7 @@ def test_a_tie_share_labels_the_near_shortest_path_that_heads_for_the_goal(
 
     start, goal = wall_problem()
     toward = (goal - start) / np.linalg.norm(goal - start)
-    cfg = OracleCfg(runs=4, iterations=5_000, shortcuts=100, refine=4, rescue_iterations=0)
+    cfg = OracleCfg(runs=4, iterations=5_000, shortcuts=100, refine=4, rescue_iterations=0, band=0)
     # The same seed gives the same candidates; only the choice among them differs.
     plain, tied = (
         oracle_path(wall, start, goal, np.random.default_rng(8), OracleCfg(**kw))
@@ -181,6 +182,25 @@ def test_an_extra_clearance_keeps_each_sphere_that_far_from_the_wall(
         OracleCfg(clearance=0.2)
     with pytest.raises(PlanningError, match="valid: sphere, tightest"):
         OracleCfg(clearance_rule="nearest")
+
+
+def test_the_band_pulls_the_label_taut(wall: CollisionChecker) -> None:
+    start, goal = wall_problem()
+    plain, banded = (
+        oracle_path(wall, start, goal, np.random.default_rng(3), replace(QUICK, band=band))
+        for band in (0, 300)
+    )
+    assert plain.path is not None and banded.path is not None
+    # the same runs and the same winner, then the band
+    assert plain.stats["candidates"] == banded.stats["candidates"]
+    assert banded.stats["cost_before_band"] == plain.stats["cost_before_resample"]
+    assert plain.stats["band"] is False and banded.stats["band"] is True
+    assert banded.stats["cost_before_resample"] < 0.99 * plain.stats["cost_before_resample"]
+    assert banded.cost == pytest.approx(banded.stats["cost_before_resample"])
+    np.testing.assert_array_equal(banded.path[[0, -1]], [start, goal])
+    assert edges_all_valid(wall, banded.path)
+    with pytest.raises(PlanningError, match="band >= 0"):
+        OracleCfg(band=-1)
 
 
 def test_oracle_cost_matches_its_path(wall: CollisionChecker, rng: np.random.Generator) -> None:

@@ -17,6 +17,7 @@ from planning.checker import make_checker
 from planning.collision import CollisionChecker
 from planning.path_ops import (
     MIN_STEP,
+    BandCfg,
     cut_corners,
     first_invalid_sample,
     pull_string,
@@ -24,6 +25,7 @@ from planning.path_ops import (
     repair,
     resample,
     shortcut,
+    tighten,
 )
 from planning.planner import path_length
 from planning.primitives import PrimitiveWorld, Sphere
@@ -353,3 +355,53 @@ def test_first_invalid_sample_names_where_an_edge_collides(
     assert not wall.config_valid(q[None])[0]
     assert wall.diagnose(q).world_contacts
     assert first_invalid_sample(wall, around_wall[0], around_wall[1]) is None
+
+
+def test_two_detours_the_same_way_round_tighten_to_one_path(wall: CollisionChecker) -> None:
+    # Two RRT-Connect paths over the wall, 6.7 and 8.7 rad, shortcut to different lengths:
+    # the band takes both to the taut path that way round (4.89 rad), leaving the start the
+    # same way, which is what makes two oracle labels of one problem agree.
+    from planning.oracle import first_step_direction
+
+    start, goal = wall_problem()
+    cfg = BandCfg(iterations=300)
+    taut = []
+    for seed in (0, 1):
+        res = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3)).plan(
+            wall, start, goal, budget_s=60.0, rng=np.random.default_rng(seed)
+        )
+        assert res.path is not None
+        slack = shortcut(res.path, wall, np.random.default_rng(0))
+        band = tighten(wall, slack, cfg)
+        assert band is not None
+        np.testing.assert_array_equal(band[[0, -1]], [start, goal])
+        assert edges_all_valid(wall, band)
+        assert path_length(band) < 0.8 * path_length(slack)
+        # budgeted by iterations: the same input gives the same band
+        np.testing.assert_array_equal(tighten(wall, slack, cfg), band)
+        taut.append(band)
+    a, b = taut
+    assert path_length(a) == pytest.approx(path_length(b), rel=1e-3)
+    cos = float(first_step_direction(a, 0.3) @ first_step_direction(b, 0.3))
+    assert np.degrees(np.arccos(min(cos, 1.0))) < 2.0
+
+
+def test_a_detour_in_free_space_tightens_to_nearly_the_straight_edge(
+    robot: RobotModel, free: CollisionChecker
+) -> None:
+    a, b = robot.named_configuration("home"), robot.named_configuration("up")
+    detour = np.stack([a, a + 0.2, (a + b) / 2 + 0.3, b - 0.1, b])
+    band = tighten(free, detour)
+    assert band is not None and edges_all_valid(free, band)
+    assert path_length(band) == pytest.approx(float(np.linalg.norm(b - a)), rel=1e-3)
+    # nothing to pull: a straight edge gives no band, nor does one shorter than two spacings
+    assert tighten(free, np.stack([a, b])) is None
+    assert tighten(free, np.stack([a, a + 0.01])) is None
+
+
+@pytest.mark.parametrize(
+    "kw", [{"spacing": 0.0}, {"clearance": -0.01}, {"weight": float("nan")}, {"iterations": 0}]
+)
+def test_band_settings_outside_their_limits_are_refused(kw: dict[str, float]) -> None:
+    with pytest.raises(PlanningError, match="the band needs"):
+        BandCfg(**kw)  # type: ignore[arg-type]
