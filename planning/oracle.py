@@ -2,8 +2,8 @@
 at length, pulled taut by an elastic band, resampled to a fixed step; and a measure of how
 close to the best known it is.
 
-:func:`oracle_path` is budgeted by work only (runs, iterations, shortcut attempts), never by
-the clock: the same seed gives the same label on an idle machine and on a loaded one.
+:func:`oracle_path` is budgeted by work only (runs, iterations, shortcut attempts, band
+iterations), never by the clock: the same seed gives the same label on an idle machine and on a loaded one.
 :func:`oracle_quality` compares its cost against the best of several long anytime runs of
 OMPL's asymptotically optimal planners (a benchmark, budgeted in seconds).
 """
@@ -70,9 +70,10 @@ class OracleCfg:
     clearance_rule: str = "sphere"
     # L-BFGS-B iterations of the elastic band that pulls the label taut at the end
     # (planning.path_ops.tighten; 0: none, the labels of the data sets made before it). On
-    # 10 Shelf II and 10 Shelf III validation problems it took the first-step disagreement of
-    # two labels from 45.1 / 38.2 deg to 1.8 / 1.7 and made them 2-30% shorter, for about
-    # 0.5 s a label (docs/results.md, "The oracle").
+    # 10 validation problems per family it took the first-step disagreement of two labels
+    # from 45.1 / 38.2 deg to 2.0 / 1.0 on Shelf II / III (0.0-9.7 deg on every family) and
+    # the shelves' labels 3-7% shorter, for 0.15-1.1 s a label (docs/results.md, "The
+    # oracle").
     band: int = 500
 
     def __post_init__(self) -> None:
