@@ -113,7 +113,8 @@ def oracle_path(
     the ``cfg.refine`` shortest of them shortened by ``cfg.shortcuts`` certified shortcuts
     (with ``cfg.tie``, the refined one within that share of the shortest whose first step
     points most nearly at the goal), pulled taut by ``cfg.band`` iterations of an elastic band
-    (:func:`~planning.path_ops.tighten`; kept only if it comes out shorter and certified),
+    (:func:`~planning.path_ops.tighten`; kept only if it comes out certified and at most 5%
+    longer),
     resampled so that no step exceeds ``cfg.max_step`` rad
     (resampling keeps the curve, so the label's edges lie on certified edges). With
     ``cfg.clearance``, all of it runs with each sphere's margin raised as far as the ends

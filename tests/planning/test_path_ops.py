@@ -394,13 +394,42 @@ def test_a_detour_in_free_space_tightens_to_nearly_the_straight_edge(
     band = tighten(free, detour)
     assert band is not None and edges_all_valid(free, band)
     assert path_length(band) == pytest.approx(float(np.linalg.norm(b - a)), rel=1e-3)
-    # nothing to pull: a straight edge gives no band, nor does one shorter than two spacings
-    assert tighten(free, np.stack([a, b])) is None
+    # nothing to pull: a straight edge stays straight; one shorter than two spacings gives
+    # no band
+    straight = tighten(free, np.stack([a, b]))
+    assert straight is not None
+    assert path_length(straight) == pytest.approx(float(np.linalg.norm(b - a)), rel=1e-9)
     assert tighten(free, np.stack([a, a + 0.01])) is None
 
 
+def test_a_band_that_keeps_its_clearance_may_come_out_a_little_longer(
+    wall: CollisionChecker,
+) -> None:
+    # A path that runs on the margin over the wall: the band keeps 2 cm more, so it comes
+    # out longer; it is kept within the slack and refused beyond it.
+    start, goal = wall_problem()
+    res = CompiledRRTConnect(RRTCCfg(simplify=False, step=0.3)).plan(
+        wall, start, goal, budget_s=60.0, rng=np.random.default_rng(0)
+    )
+    assert res.path is not None
+    tight = tighten(wall, res.path, BandCfg(iterations=300, clearance=0.001))
+    assert tight is not None
+    loose = tighten(wall, tight, BandCfg(iterations=300, clearance=0.05))
+    assert loose is not None and edges_all_valid(wall, loose)
+    grow = path_length(loose) / path_length(tight)
+    assert 1.0 < grow <= 1.05
+    assert tighten(wall, tight, BandCfg(iterations=300, clearance=0.05, slack=0.0)) is None
+
+
 @pytest.mark.parametrize(
-    "kw", [{"spacing": 0.0}, {"clearance": -0.01}, {"weight": float("nan")}, {"iterations": 0}]
+    "kw",
+    [
+        {"spacing": 0.0},
+        {"clearance": -0.01},
+        {"weight": float("nan")},
+        {"iterations": 0},
+        {"slack": -0.1},
+    ],
 )
 def test_band_settings_outside_their_limits_are_refused(kw: dict[str, float]) -> None:
     with pytest.raises(PlanningError, match="the band needs"):
