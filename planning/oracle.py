@@ -71,7 +71,7 @@ class OracleCfg:
     # L-BFGS-B iterations of the elastic band that pulls the label taut at the end
     # (planning.path_ops.tighten; 0: none, the labels of the data sets made before it). On
     # 10 validation problems per family it took the first-step disagreement of two labels
-    # from 45.1 / 38.2 deg to 2.0 / 1.0 on Shelf II / III (0.0-9.7 deg on every family) and
+    # from 45.1 / 38.2 deg to 2.0 / 1.0 on Shelf II / III (0.0-2.0 deg on every family) and
     # the shelves' labels 3-7% shorter, for 0.15-1.1 s a label (docs/results.md, "The
     # oracle").
     band: int = 500
