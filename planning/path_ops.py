@@ -385,7 +385,7 @@ class BandCfg:
     weight: float = 1e4  # of the penalties (m², rad²) against the band's energy (rad²)
     # L-BFGS-B iterations, the work budget. On 10 Shelf II and 10 Shelf III problems, two
     # oracle labels' first steps lay 12.6 / 13.0 deg apart (median) after 200 and 4.3 / 3.1
-    # after 500 (docs/results.md, "The oracle").
+    # after 500, measured with a first form of the band (no midpoints, no edge bound).
     iterations: int = 500
     # The band may come out up to this share longer than its input: it keeps `clearance` from
     # the obstacles where a shortcut path runs on the margin. On 10 Bins validation problems,
