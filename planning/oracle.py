@@ -94,10 +94,14 @@ class OracleCfg:
                 f"unknown clearance rule '{self.clearance_rule}'; valid: "
                 f"{', '.join(CLEARANCE_RULES)}"
             )
-        if self.rescue_iterations < 0 or not (0 < self.max_step <= 1.0) or self.band < 0:
+        if self.rescue_iterations < 0 or not (0 < self.max_step <= 1.0):
             raise PlanningError(
-                "the oracle needs rescue_iterations >= 0, 0 < max_step <= 1 rad and band >= 0; "
-                f"got {self.rescue_iterations}, {self.max_step}, {self.band}"
+                "the oracle needs rescue_iterations >= 0 and 0 < max_step <= 1 rad; got "
+                f"{self.rescue_iterations}, {self.max_step}"
+            )
+        if self.band < 0:
+            raise PlanningError(
+                f"the oracle's band needs >= 0 iterations (0: no band); got {self.band}"
             )
 
 

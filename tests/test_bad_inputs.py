@@ -317,6 +317,26 @@ CASES: dict[str, Case] = {
         "need paths >= 1",
         ("data",),
     ),
+    "data-generate-negative-band": Case(
+        lambda t, _: [
+            "data",
+            "generate",
+            "--paths",
+            "4",
+            "--oracle-band",
+            "-1",
+            "--out",
+            str(t / "data"),
+        ],
+        7,
+        "band needs >= 0 iterations",
+        ("data",),
+    ),
+    "oracle-bench-negative-band": Case(
+        lambda t, _: ["bench", "oracle", "--families", "box", "--problems", "1", "--band", "-5"],
+        7,
+        "band needs >= 0 iterations",
+    ),
     "scenes-export-nothing": Case(
         lambda t, _: [
             "scenes",

@@ -199,7 +199,7 @@ def test_the_band_pulls_the_label_taut(wall: CollisionChecker) -> None:
     assert banded.cost == pytest.approx(banded.stats["cost_before_resample"])
     np.testing.assert_array_equal(banded.path[[0, -1]], [start, goal])
     assert edges_all_valid(wall, banded.path)
-    with pytest.raises(PlanningError, match="band >= 0"):
+    with pytest.raises(PlanningError, match="band needs >= 0"):
         OracleCfg(band=-1)
 
 
@@ -234,10 +234,12 @@ def test_bench_oracle_writes_the_consistency_figures(tmp_path: Path) -> None:
 
     out = tmp_path / "oracle.json"
     res = run_cli("bench", "oracle", "--families", "tabletop", "--problems", "1", "--budget", "0.3",
-                  "--runs", "3", "--refine", "3", "--tie", "0.05", "--json", str(out))  # fmt: skip
+                  "--runs", "3", "--refine", "3", "--tie", "0.05", "--band", "50",
+                  "--json", str(out))  # fmt: skip
     assert res.returncode == 0, res.stderr
     fig = json.loads(out.read_text())
     assert fig["oracle"]["runs"] == 3 and fig["oracle"]["tie"] == 0.05
+    assert fig["oracle"]["band"] == 50
     assert set(fig["first_step_disagreement_deg"]) == {"tabletop"}
     assert fig["cost_spread"]["tabletop"] >= 1.0
     assert "first steps" in res.stdout
