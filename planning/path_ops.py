@@ -21,7 +21,7 @@ shorter replacements are taken, or waypoints are skipped).
 - :func:`repair`: skips the waypoints of edges the checker rejects, where it accepts the skip.
 - :func:`resample`: evenly spaced waypoints, no step longer than a bound; the curve is kept.
 - :func:`tighten`: the path pulled taut as an elastic band against a clearance penalty,
-  then certified (the training oracle's last step).
+  then certified (the training oracle's optional last step).
 - :func:`first_invalid_sample`: where along an edge, sampled at the checker's resolution, a
   configuration is invalid (for diagnoses).
 

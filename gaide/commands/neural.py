@@ -64,8 +64,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     gen.add_argument(
         "--oracle-band",
         type=int,
-        help="L-BFGS iterations of the elastic band that pulls each label taut (500; 0: "
-        "none, as the sets made before it)",
+        help="L-BFGS iterations of the elastic band that pulls each label taut (0, the "
+        "default: none; 500 makes two labels of a problem agree, docs/results.md)",
     )
     # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
     # the same labels under load). The old flags are still accepted and say so.

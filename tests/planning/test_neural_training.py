@@ -26,12 +26,8 @@ TINY = ModelCfg(
     hidden=32, heads=2, ff=64, enc_layers=2, dec_layers=1, scene_points=256, scene_tokens=8
 )
 # Two scenes (a TableTop and a Box), each with its four categories' start/goal pairs.
-# No band (OracleCfg.band): the training tests below are sized for these labels.
 DATA = DataCfg(
-    families=("tabletop", "box"),
-    paths=8,
-    shard_size=4,
-    oracle=OracleCfg(runs=2, shortcuts=50, band=0),
+    families=("tabletop", "box"), paths=8, shard_size=4, oracle=OracleCfg(runs=2, shortcuts=50)
 )
 
 

@@ -21,8 +21,7 @@ from tests.planning.ompl_problems import (
     wall_problem,
 )
 
-# No band: these tests are about the runs and the choice among them (the band has its own).
-QUICK = OracleCfg(runs=3, iterations=5_000, shortcuts=100, rescue_iterations=0, band=0)
+QUICK = OracleCfg(runs=3, iterations=5_000, shortcuts=100, rescue_iterations=0)
 
 
 @pytest.fixture(scope="module")
