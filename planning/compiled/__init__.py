@@ -4,7 +4,9 @@ Python objects never enter a kernel: :mod:`planning.compiled.tables` exports the
 sphere model and world once as flat arrays (:mod:`planning.compiled.layout`), and the
 kernels (:mod:`~planning.compiled.geometry`, :mod:`~planning.compiled.validity`,
 :mod:`~planning.compiled.lanes`) take only those.
-:class:`~planning.compiled.checker.CompiledChecker` is the Python face.
+:class:`~planning.compiled.checker.CompiledChecker` is the Python face. The planners' kernels
+are :mod:`~planning.compiled.rrtc_kernel` and :mod:`~planning.compiled.shortcut_kernel`, and
+:mod:`~planning.compiled.band_kernel` serves the oracle's elastic band.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import hashlib
 from pathlib import Path
 
 __all__ = [
+    "band_kernel",
     "checker",
     "geometry",
     "lanes",
