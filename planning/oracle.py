@@ -22,7 +22,7 @@ from gaide_core.errors import PlanningError
 from gaide_core.types import Array
 from planning.collision import CollisionChecker
 from planning.ompl_planners import ANYTIME_PLANNERS, OmplPlanner
-from planning.path_ops import BandCfg, resample, tighten
+from planning.path_ops import BandCfg, pull_string, resample, tighten
 from planning.planner import PlanResult, PlanStatus, path_length, prepare_plan
 from planning.rrtc import CompiledRRTConnect, RRTCCfg, shorten
 
@@ -77,6 +77,11 @@ class OracleCfg:
     # 88% mean) than on the same problems' labels without it (docs/results.md, "The
     # oracle").
     band: int = 0
+    # After the band, keep only the band's points that certified straight edges cannot skip
+    # (greedy string pulling from the start, :func:`~planning.path_ops.pull_string`): the
+    # taut curve becomes a polyline whose corners lie on it, so the label keeps the band's
+    # way round and its straight edges, along which two trees can meet.
+    band_pull: bool = False
 
     def __post_init__(self) -> None:
         if self.runs < 1 or self.iterations < 1 or self.shortcuts < 0 or self.refine < 1:
@@ -104,6 +109,11 @@ class OracleCfg:
         if self.band < 0:
             raise PlanningError(
                 f"the oracle's band needs >= 0 iterations (0: no band); got {self.band}"
+            )
+        if self.band_pull and not self.band:
+            raise PlanningError(
+                "the oracle's band pull string-pulls the band: it needs band > 0 iterations; "
+                "got band 0"
             )
 
 
@@ -184,7 +194,7 @@ def oracle_path(
         src, best = max(near, key=lambda c: float(first_step_direction(c[1], 0.3) @ toward))
     stats.update(winner=src, cost_before_band=path_length(best), band=False)
     if cfg.band:
-        taut = tighten(kept, best, BandCfg(iterations=cfg.band))
+        taut = _band(kept, best, cfg)
         if taut is not None:
             best = taut
             stats["band"] = True
@@ -192,6 +202,15 @@ def oracle_path(
     log.debug("oracle: %s wins with %.4f rad", src, path_length(best))
     dense = resample(best, cfg.max_step)
     return PlanResult("oracle", PlanStatus.SUCCESS, dense, time.perf_counter() - t0, stats=stats)
+
+
+def _band(checker: CollisionChecker, path: Array, cfg: OracleCfg) -> Array | None:
+    """``path`` pulled taut by the oracle's band, string-pulled with ``cfg.band_pull``; None
+    where the band is refused (:func:`~planning.path_ops.tighten`)."""
+    taut = tighten(checker, path, BandCfg(iterations=cfg.band))
+    if taut is None or not cfg.band_pull:
+        return taut
+    return pull_string(taut, checker, max_skip=None)
 
 
 def _with_clearance(
@@ -290,7 +309,7 @@ def oracle_quality(
         cost = math.inf
         if res.path is not None:
             path = shorten(checker, res.path, rng, cfg.shortcuts)
-            taut = tighten(checker, path, BandCfg(iterations=cfg.band)) if cfg.band else None
+            taut = _band(checker, path, cfg) if cfg.band else None
             cost = path_length(path if taut is None else taut)
         costs.append((name, cost))
     reference = min(c for _, c in costs)

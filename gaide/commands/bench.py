@@ -89,6 +89,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="limit each sphere's extra clearance by its own at the ends, or all by the "
         "tightest sphere's (default: the data's oracle)",
     )
+    ora.add_argument(
+        "--band-pull",
+        action="store_true",
+        default=None,
+        help="after the band, keep only the band's points that straight certified edges "
+        "cannot skip (default: the data's oracle, no pulling)",
+    )
     ora.add_argument("--robot", help="robot config YAML (default: UR5)")
     ora.add_argument("--json", help="write the figures to this JSON file")
     ora.set_defaults(func=cmd_oracle)
@@ -277,7 +284,16 @@ def cmd_oracle(args: argparse.Namespace) -> int:
             f"{args.budget}"
         )
     robot, spheres = robot_and_spheres(args.robot)
-    keys = ("runs", "refine", "shortcuts", "tie", "clearance", "clearance_rule", "band")
+    keys = (
+        "runs",
+        "refine",
+        "shortcuts",
+        "tie",
+        "clearance",
+        "clearance_rule",
+        "band",
+        "band_pull",
+    )
     chosen = {k: getattr(args, k) for k in keys}
     cfg = OracleCfg(**{k: v for k, v in chosen.items() if v is not None})
     rows, runs = [], []

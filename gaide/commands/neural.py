@@ -67,6 +67,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="L-BFGS iterations of the elastic band that pulls each label taut (0, the "
         "default: none; 500 makes two labels of a problem agree, docs/results.md)",
     )
+    gen.add_argument(
+        "--oracle-band-pull",
+        action="store_true",
+        default=None,
+        help="after the band, keep only the band's points that straight certified edges "
+        "cannot skip (string pulling: a polyline on the taut curve)",
+    )
     # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
     # the same labels under load). The old flags are still accepted and say so.
     for old_flag in ("--oracle-budget", "--oracle-rescue"):
@@ -154,6 +161,7 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
                     ("clearance", args.oracle_clearance),
                     ("clearance_rule", args.oracle_clearance_rule),
                     ("band", args.oracle_band),
+                    ("band_pull", args.oracle_band_pull),
                 )
                 if value is not None
             }

@@ -116,6 +116,7 @@ def generate(
             old_oracle.setdefault("tie", 0.0)
             old_oracle.setdefault("clearance", 0.0)
             old_oracle.setdefault("band", 0)
+            old_oracle.setdefault("band_pull", False)
             rule = "tightest" if old_oracle["clearance"] > 0 else "sphere"
             old_oracle.setdefault("clearance_rule", rule)
         if old["settings"] != settings or old["format"] != FORMAT:

@@ -102,12 +102,16 @@ def test_a_manifest_from_before_the_oracle_tie_share_still_resumes(
     for f in data_dir.iterdir():
         (tmp_path / f.name).write_bytes(f.read_bytes())
     manifest = json.loads((tmp_path / "manifest.json").read_text())
-    for key in ("tie", "clearance", "clearance_rule", "band"):
+    for key in ("tie", "clearance", "clearance_rule", "band", "band_pull"):
         del manifest["settings"]["oracle"][key]
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
     (tmp_path / "shard-00001.npz").unlink()
     assert generate(DATA, tmp_path, workers=1)["complete"]
-    for other in (replace(DATA.oracle, tie=0.05), replace(DATA.oracle, band=500)):
+    for other in (
+        replace(DATA.oracle, tie=0.05),
+        replace(DATA.oracle, band=500),
+        replace(DATA.oracle, band=500, band_pull=True),
+    ):
         with pytest.raises(ModelError, match="other settings"):
             generate(replace(DATA, oracle=other), tmp_path, workers=1)
     # One made with a clearance but before its per-sphere rule had the tightest sphere's.

@@ -202,6 +202,35 @@ def test_the_band_pulls_the_label_taut(wall: CollisionChecker) -> None:
         OracleCfg(band=-1)
 
 
+def _corners(path: np.ndarray) -> np.ndarray:
+    """The path's ends and the waypoints where its direction turns."""
+    steps = np.diff(path, axis=0)
+    unit = steps / np.linalg.norm(steps, axis=1, keepdims=True)
+    turns = np.flatnonzero(np.einsum("ij,ij->i", unit[:-1], unit[1:]) < 1 - 1e-9) + 1
+    return path[np.concatenate([[0], turns, [len(path) - 1]])]
+
+
+def test_the_pulled_band_keeps_corners_on_the_band(wall: CollisionChecker) -> None:
+    start, goal = wall_problem()
+    banded, pulled = (
+        oracle_path(wall, start, goal, rng, replace(QUICK, band=300, band_pull=pull))
+        for rng, pull in ((np.random.default_rng(3), False), (np.random.default_rng(3), True))
+    )
+    assert banded.path is not None and pulled.path is not None
+    assert pulled.stats["band"] is True
+    # string pulling only skips points of the band: never longer, a few corners, and those
+    # corners are points of the (resampled) band
+    assert pulled.cost <= banded.cost + 1e-9
+    assert edges_all_valid(wall, pulled.path)
+    np.testing.assert_array_equal(pulled.path[[0, -1]], [start, goal])
+    corners = _corners(pulled.path)
+    assert 3 <= len(corners) < len(_corners(banded.path)) / 2
+    gaps = np.linalg.norm(corners[:, None, :] - banded.path[None, :, :], axis=2).min(axis=1)
+    assert gaps.max() < 0.05  # rad: each corner lies on the band (within its resampling)
+    with pytest.raises(PlanningError, match="needs band > 0"):
+        OracleCfg(band_pull=True)
+
+
 def test_oracle_cost_matches_its_path(wall: CollisionChecker, rng: np.random.Generator) -> None:
     start, goal = wall_problem()
     res = oracle_path(wall, start, goal, rng, OracleCfg(runs=1, iterations=5_000, max_step=0.2))
