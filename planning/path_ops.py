@@ -430,6 +430,7 @@ def tighten(checker: CollisionChecker, path: Array, cfg: BandCfg | None = None) 
     written here and the optimiser is scipy's."""
     # Imported here: the other operations need neither scipy's optimiser nor numba.
     from scipy.optimize import minimize
+    from threadpoolctl import threadpool_limits
 
     from planning.compiled.band_kernel import penalty_gradient
     from planning.rrtc import kernel_tables
@@ -462,10 +463,14 @@ def tighten(checker: CollisionChecker, path: Array, cfg: BandCfg | None = None) 
     lower, upper = checker.robot.lower, checker.robot.upper
     bounds = list(zip(np.tile(lower, n), np.tile(upper, n), strict=True))
     x0 = np.clip(p[1:-1], lower, upper).ravel()
-    res = minimize(
-        energy, x0, jac=True, method="L-BFGS-B", bounds=bounds,
-        options={"maxiter": cfg.iterations, "maxfun": 2 * cfg.iterations},
-    )  # fmt: skip
+    # L-BFGS-B's solves are small (a few hundred variables, 10 corrections): BLAS threads only
+    # cost there, and with every core busy (data generation's workers) OpenBLAS's spinning
+    # threads made the band 8x slower (84% of its time in L-BFGS-B; docs/results.md).
+    with threadpool_limits(1, user_api="blas"):
+        res = minimize(
+            energy, x0, jac=True, method="L-BFGS-B", bounds=bounds,
+            options={"maxiter": cfg.iterations, "maxfun": 2 * cfg.iterations},
+        )  # fmt: skip
     band = np.vstack([q0, res.x.reshape(n, dof), q1])
     if not np.all(np.isfinite(band)) or path_length(band) > (1 + cfg.slack) * path_length(path):
         return None

@@ -32,8 +32,12 @@ def _worker_robot(robot_config: str | None) -> tuple[Any, Any]:
     """The robot and spheres of this worker process (loaded once)."""
     if _WORKER.get("config", ()) != robot_config:
         import torch
+        from threadpoolctl import threadpool_limits
 
+        # A worker is one CPU's share of the work (a process of the pool, a Ray task of one
+        # CPU): more threads in torch or BLAS only oversubscribe the cores.
         torch.set_num_threads(1)
+        threadpool_limits(1)
         from ompl import util as ou
 
         ou.setLogLevel(ou.LogLevel.LOG_NONE)
