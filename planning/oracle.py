@@ -72,16 +72,16 @@ class OracleCfg:
     # (planning.path_ops.tighten; 0: none). With 500, on 10 validation problems per family,
     # the first-step disagreement of two labels fell from 45.1 / 38.2 deg to 2.0 / 1.0 on
     # Shelf II / III (0.0-2.0 deg on every family) and the shelves' labels came out 3-7%
-    # shorter, for 0.15-1.1 s a label. It is off by default: GAIDE trained on 4,800 such
-    # labels fit them five times better and solved fewer validation problems (75% against
-    # 88% mean) than on the same problems' labels without it (docs/results.md, "The
-    # oracle").
-    band: int = 0
+    # shorter (docs/results.md, "The oracle").
+    band: int = 500
     # After the band, keep only the band's points that certified straight edges cannot skip
-    # (greedy string pulling from the start, :func:`~planning.path_ops.pull_string`): the
-    # taut curve becomes a polyline whose corners lie on it, so the label keeps the band's
-    # way round and its straight edges, along which two trees can meet.
-    band_pull: bool = False
+    # (greedy string pulling from the start, :func:`~planning.path_ops.pull_string`; nothing
+    # without a band): the taut curve becomes a polyline whose corners lie on it, so the
+    # label keeps the band's way round and gets straight edges, along which two trees meet.
+    # GAIDE trained on 4,800 labels of the band alone solved 75% / 71% of the validation
+    # problems (two training seeds); with the pull, 88% / 86%; on the labels without a band,
+    # 88% / 83% (docs/results.md).
+    band_pull: bool = True
 
     def __post_init__(self) -> None:
         if self.runs < 1 or self.iterations < 1 or self.shortcuts < 0 or self.refine < 1:
@@ -110,11 +110,9 @@ class OracleCfg:
             raise PlanningError(
                 f"the oracle's band needs >= 0 iterations (0: no band); got {self.band}"
             )
-        if self.band_pull and not self.band:
-            raise PlanningError(
-                "the oracle's band pull string-pulls the band: it needs band > 0 iterations; "
-                "got band 0"
-            )
+        if not self.band:
+            # Nothing to pull: one setting for one label (a manifest's settings compare).
+            object.__setattr__(self, "band_pull", False)
 
 
 def oracle_path(
@@ -130,8 +128,8 @@ def oracle_path(
     (with ``cfg.tie``, the refined one within that share of the shortest whose first step
     points most nearly at the goal), pulled taut by ``cfg.band`` iterations of an elastic band
     (:func:`~planning.path_ops.tighten`; kept only if it comes out certified and at most 5%
-    longer),
-    resampled so that no step exceeds ``cfg.max_step`` rad
+    longer) and, with ``cfg.band_pull``, reduced to the band's points that certified edges
+    cannot skip, resampled so that no step exceeds ``cfg.max_step`` rad
     (resampling keeps the curve, so the label's edges lie on certified edges). With
     ``cfg.clearance``, all of it runs with each sphere's margin raised as far as the ends
     allow, and again at the checker's own margin if that found no path.

@@ -332,20 +332,6 @@ CASES: dict[str, Case] = {
         "band needs >= 0 iterations",
         ("data",),
     ),
-    "data-generate-pull-without-band": Case(
-        lambda t, _: [
-            "data",
-            "generate",
-            "--paths",
-            "4",
-            "--oracle-band-pull",
-            "--out",
-            str(t / "data"),
-        ],
-        7,
-        "needs band > 0",
-        ("data",),
-    ),
     "oracle-bench-negative-band": Case(
         lambda t, _: ["bench", "oracle", "--families", "box", "--problems", "1", "--band", "-5"],
         7,

@@ -91,10 +91,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     )
     ora.add_argument(
         "--band-pull",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
         default=None,
         help="after the band, keep only the band's points that straight certified edges "
-        "cannot skip (default: the data's oracle, no pulling)",
+        "cannot skip (default: the data's oracle, which pulls)",
     )
     ora.add_argument("--robot", help="robot config YAML (default: UR5)")
     ora.add_argument("--json", help="write the figures to this JSON file")

@@ -64,15 +64,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     gen.add_argument(
         "--oracle-band",
         type=int,
-        help="L-BFGS iterations of the elastic band that pulls each label taut (0, the "
-        "default: none; 500 makes two labels of a problem agree, docs/results.md)",
+        help="L-BFGS iterations of the elastic band that pulls each label taut (500, the "
+        "default, makes two labels of a problem agree; 0: none; docs/results.md)",
     )
     gen.add_argument(
         "--oracle-band-pull",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
         default=None,
         help="after the band, keep only the band's points that straight certified edges "
-        "cannot skip (string pulling: a polyline on the taut curve)",
+        "cannot skip (string pulling: a polyline on the taut curve; the default)",
     )
     # The oracle was budgeted in seconds; it is budgeted by work now (the same seed gives
     # the same labels under load). The old flags are still accepted and say so.

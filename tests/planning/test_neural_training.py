@@ -27,7 +27,10 @@ TINY = ModelCfg(
 )
 # Two scenes (a TableTop and a Box), each with its four categories' start/goal pairs.
 DATA = DataCfg(
-    families=("tabletop", "box"), paths=8, shard_size=4, oracle=OracleCfg(runs=2, shortcuts=50)
+    families=("tabletop", "box"),
+    paths=8,
+    shard_size=4,
+    oracle=OracleCfg(runs=2, shortcuts=50, band=0),
 )
 
 
@@ -110,7 +113,7 @@ def test_a_manifest_from_before_the_oracle_tie_share_still_resumes(
     for other in (
         replace(DATA.oracle, tie=0.05),
         replace(DATA.oracle, band=500),
-        replace(DATA.oracle, band=500, band_pull=True),
+        replace(DATA.oracle, band=500, band_pull=False),
     ):
         with pytest.raises(ModelError, match="other settings"):
             generate(replace(DATA, oracle=other), tmp_path, workers=1)
@@ -247,8 +250,8 @@ def test_torchrun_with_two_processes_follows_the_single_process_loss_curve(
     import sys
 
     args = [
-        *("train", "--model", "mpnet", "--data", str(data_dir), "--hidden", "16"),
-        *("--ff", "32", "--steps", "150", "--batch", "32", "--lr", "3e-3", "--val-every", "25"),
+        *("train", "--model", "mpnet", "--data", str(data_dir), "--hidden", "32"),
+        *("--ff", "64", "--steps", "150", "--batch", "32", "--lr", "3e-3", "--val-every", "25"),
         *("--device", "cpu", "--threads", "1"),
     ]
     one = run_cli(*args, "--out", str(tmp_path / "one.pt"))
@@ -265,5 +268,5 @@ def test_torchrun_with_two_processes_follows_the_single_process_loss_curve(
     assert [c["processes"] for c in curves] == [1, 2]
     a, b = (np.array([h["train"] for h in c["history"]]) for c in curves)
     assert len(a) == len(b) == 6
-    assert a[-1] < 0.7 * a[0] and b[-1] < 0.7 * b[0], "both learn"
+    assert a[-1] < 0.7 * a[0] and b[-1] < 0.7 * b[0], ("both learn", a, b)
     assert np.all(np.abs(a - b) <= 0.25 * np.maximum(a, b)), (a, b)
