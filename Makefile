@@ -10,13 +10,14 @@ STAMP  := $(VENV)/.installed
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	@bash .ci/system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	# The CPU wheel first: a looser spec would pull a multi-GB CUDA build.
 	$(BIN)/pip install --quiet torch==2.13.0
-	$(BIN)/pip install --quiet -e '.[dev]'
+	# Every version held (constraints.txt): the benchmark problems depend on them.
+	$(BIN)/pip install --quiet -c constraints.txt -e '.[dev]'
 	# Compile the planning kernels once; later processes load them from numba's cache.
 	$(BIN)/python -m planning.compiled.warmup
 	@touch $(STAMP)
