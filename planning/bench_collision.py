@@ -18,11 +18,16 @@ Figures (all from one run, the compiled checker unless ``checker="numpy"``; one 
   obstacles (sphere clearance below ``near_band_m``; colliding ones included).
 - ``mesh_false_alarm_rate``: of the configurations the meshes find free, the share the spheres
   flag (primitives world; ``..._cloud`` for the cloud world).
+- ``machine``: the CPU, its widest SIMD, the cores and the compiler's versions: the rates
+  above are the machine's as much as the code's (docs/results.md: the same build measured a
+  third slower on another machine).
 """
 
 from __future__ import annotations
 
 import logging
+import os
+import platform
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -137,6 +142,35 @@ def _rate(fn: Any, n: int, repeats: int) -> float:
     return n / float(np.median(times))
 
 
+def machine() -> dict[str, Any]:
+    """What the rates were measured on: the CPU's model name (``/proc/cpuinfo`` on Linux),
+    its widest SIMD extension, the cores, and numba's and llvmlite's versions."""
+    import llvmlite
+    import numba
+
+    name, flags = "", set[str]()
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                if key.strip() == "model name" and not name:
+                    name = value.strip()
+                elif key.strip() == "flags":
+                    flags = set(value.split())
+                    break
+    except OSError:  # not Linux: the platform's name stands, the SIMD is not known
+        pass
+    name = name or platform.processor() or platform.machine()
+    simd = next((f for f in ("avx512f", "avx2", "avx", "sse4_2", "asimd") if f in flags), "")
+    return {
+        "cpu": name,
+        "simd": simd,
+        "cores": os.cpu_count(),
+        "numba": numba.__version__,
+        "llvmlite": llvmlite.__version__,
+    }
+
+
 def run_collision_benchmark(
     robot: RobotModel,
     spheres: SphereModel,
@@ -156,6 +190,7 @@ def run_collision_benchmark(
     check_p.config_valid(Q[:100])
     results: dict[str, Any] = {
         "checker": cfg.checker,
+        "machine": machine(),
         "configs_per_s_cloud": _rate(lambda: check_c.config_valid(Q), cfg.batch, cfg.repeats),
         "configs_per_s_primitives": _rate(lambda: check_p.config_valid(Q), cfg.batch, cfg.repeats),
     }

@@ -152,6 +152,7 @@ def cmd_collision(args: argparse.Namespace) -> int:
         ("mesh_false_alarm_rate", f"{res['mesh_false_alarm_rate']:.3f}  (target <= 0.10)"),
         ("mesh_false_alarm_rate_cloud", f"{res['mesh_false_alarm_rate_cloud']:.3f}"),
         ("margin / voxel", f"{res['margin_m']} m / {res['voxel_m']} m, {res['n_spheres']} spheres"),
+        ("machine", "{cpu}, {simd}, {cores} cores, numba {numba}".format(**res["machine"])),
         ("wall time", f"{res['wall_s']:.1f} s"),
     ]
     print_table(rows, "collision benchmark")

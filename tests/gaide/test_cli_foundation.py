@@ -22,7 +22,8 @@ def test_bench_collision_quick_writes_every_key(tmp_path: Path) -> None:
         assert key in figures
     assert figures["fk_max_err_m"] <= 1e-9
     assert figures["mesh_missed"] == 0
-    assert "configs_per_s_cloud" in proc.stdout
+    assert figures["machine"]["cores"] >= 1 and figures["machine"]["cpu"]
+    assert "configs_per_s_cloud" in proc.stdout and "cores, numba" in proc.stdout
 
 
 def test_bad_input_prints_one_line_and_exits_with_the_stage_code(tmp_path: Path) -> None:
