@@ -78,9 +78,9 @@ class OracleCfg:
     # (greedy string pulling from the start, :func:`~planning.path_ops.pull_string`; nothing
     # without a band): the taut curve becomes a polyline whose corners lie on it, so the
     # label keeps the band's way round and gets straight edges, along which two trees meet.
-    # GAIDE trained on 4,800 labels of the band alone solved 75% / 71% of the validation
-    # problems (two training seeds); with the pull, 88% / 86%; on the labels without a band,
-    # 88% / 83% (docs/results.md).
+    # GAIDE trained on 4,800 labels with the pull solved 88% / 86% of one validation split
+    # (two training seeds), on the same problems' labels without a band 85% / 85%; on the
+    # band alone it had solved 75% / 71% (docs/results.md, "The oracle").
     band_pull: bool = True
 
     def __post_init__(self) -> None:

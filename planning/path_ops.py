@@ -465,7 +465,7 @@ def tighten(checker: CollisionChecker, path: Array, cfg: BandCfg | None = None) 
     x0 = np.clip(p[1:-1], lower, upper).ravel()
     # L-BFGS-B's solves are small (a few hundred variables, 10 corrections): BLAS threads only
     # cost there, and with every core busy (data generation's workers) OpenBLAS's spinning
-    # threads made the band 8x slower (84% of its time in L-BFGS-B; docs/results.md).
+    # threads made the band 3.5x slower (84% of its time in L-BFGS-B; docs/results.md).
     with threadpool_limits(1, user_api="blas"):
         res = minimize(
             energy, x0, jac=True, method="L-BFGS-B", bounds=bounds,
