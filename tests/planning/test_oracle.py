@@ -266,11 +266,11 @@ def test_bench_oracle_writes_the_consistency_figures(tmp_path: Path) -> None:
     out = tmp_path / "oracle.json"
     res = run_cli("bench", "oracle", "--families", "tabletop", "--problems", "1", "--budget", "0.3",
                   "--runs", "3", "--refine", "3", "--tie", "0.05", "--band", "50",
-                  "--json", str(out))  # fmt: skip
+                  "--no-band-pull", "--json", str(out))  # fmt: skip
     assert res.returncode == 0, res.stderr
     fig = json.loads(out.read_text())
     assert fig["oracle"]["runs"] == 3 and fig["oracle"]["tie"] == 0.05
-    assert fig["oracle"]["band"] == 50
+    assert fig["oracle"]["band"] == 50 and fig["oracle"]["band_pull"] is False
     assert set(fig["first_step_disagreement_deg"]) == {"tabletop"}
     assert fig["cost_spread"]["tabletop"] >= 1.0
     assert "first steps" in res.stdout
