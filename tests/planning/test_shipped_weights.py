@@ -48,7 +48,18 @@ RETRAINED = (
         ("weights-train50k-clear3", "train50k-clear3", 50398, kind)
         for kind in ("gaide", "mpnet", "simpnet")
     ]
+    + [("weights-train50k-clear3-k2", "train50k-clear3", 50398, kind) for kind in MODEL_KINDS]
 )
+
+
+@pytest.mark.parametrize("kind", MODEL_KINDS)
+def test_the_shipped_weights_name_the_band_set(kind: str) -> None:
+    path = shipped_checkpoint(kind)
+    card = json.loads(card_path(path).read_text())
+    manifest = path.parent.parent / "train50k-band" / "manifest.json"
+    assert card["data_manifest_sha256"] == file_sha256(manifest)
+    assert card["data_paths"] == json.loads(manifest.read_text())["paths"] == 50398
+    assert card["model_cfg"]["modes"] == 2 and card["steps"] == 5000
 
 
 @pytest.mark.parametrize(("folder", "data", "paths", "kind"), RETRAINED)
