@@ -155,7 +155,7 @@ def machine() -> dict[str, Any]:
                 key, _, value = line.partition(":")
                 if key.strip() == "model name" and not name:
                     name = value.strip()
-                elif key.strip() == "flags":
+                elif key.strip() in ("flags", "Features"):  # x86 / ARM
                     flags = set(value.split())
                     break
     except OSError:  # not Linux: the platform's name stands, the SIMD is not known
