@@ -18,9 +18,10 @@ scalar loop and the lanes run back to back): 1.2 -> 2.7-2.9M configurations/s ag
 primitives, 2.2 -> 4.0-4.6M against a 50,000-point cloud, 2.0 -> 9.0M in the empty world.
 
 :func:`dense_prefix` puts the same steps to a second use: a long edge's evenly spaced
-samples, one per lane, with their capped clearances and self-pair gaps, for the dense
-certificate of :mod:`planning.collision` (the walk takes its samples one after the other,
-each placed by the last; these are placed in advance, so they can go together).
+samples, one per lane (where it pays, every DENSE_STRIDE-th first, then those of the
+intervals that need them), with their capped clearances and self-pair gaps, for the dense certificate of
+:mod:`planning.collision` (the walk takes its samples one after the other, each placed by
+the last; these are placed in advance, so they can go together).
 
 How the loops are written so that they vectorize: numba cannot tell LLVM that two arrays do
 not overlap, so LLVM checks it at run time before a vector loop, and gives up beyond a
@@ -39,7 +40,7 @@ import numpy as np
 from numba import njit
 
 from gaide_core.types import BoolArray, FloatArray, IntArray
-from planning.collision import CLEARANCE_CAP, DENSE_SAMPLES
+from planning.collision import CLEARANCE_CAP, DENSE_SAMPLES, DENSE_STRIDE, coarse_first
 from planning.compiled.geometry import is_cloud_lattice
 from planning.compiled.layout import (
     BLOCK,
@@ -58,6 +59,7 @@ from planning.compiled.trig import REDUCED_UP_TO, sincos
 LANES = 64
 
 _sincos = njit(cache=True, inline="always")(sincos)
+_coarse_first = njit(cache=True, inline="always")(coarse_first)
 
 # A cloud look-up's per-lane values (_cloud_values): nearest value's index, its block's, the
 # way to it, the block's minimum, the value, and whether it is read.
@@ -324,14 +326,14 @@ def _primitive_values(I: IntArray, F: FloatArray, o: Off, lk: int, C: FloatArray
 
 @njit(cache=True, inline="always")
 def _link_clear(I: IntArray, F: FloatArray, o: Off, X: FloatArray, lk: int, LC: FloatArray,
-                t: FloatArray, cap: float, margin: float, bad: BoolArray, need: BoolArray,
+                dt: FloatArray, cap: float, margin: float, bad: BoolArray, need: BoolArray,
                 low: FloatArray, n: int) -> bool:  # fmt: skip
     """Does the bounding ball of link lk (its world radius) keep from the primitives a
     clearance >= margin in every lane, and the two-sample bound with the largest reach of
-    the link's world spheres (``X[o.xreach + s]``) between every two neighbouring lanes (at
-    fractions ``t``)? Then each of its world spheres, inside the ball, does both (exact
-    distances are 1-Lipschitz), and their own values cannot change the dense certificate's
-    answer. (Not for cloud worlds: a lattice's lower bounds at two points need not differ
+    the link's world spheres (``X[o.xreach + s]``) between every two neighbouring lanes
+    (lanes k and k + 1 ``dt[k]`` of the edge apart)? Then each of its world spheres, inside
+    the ball, does both (exact distances are 1-Lipschitz), and their own values cannot
+    change the dense certificate's answer. (Not for cloud worlds: a lattice's lower bounds at two points need not differ
     by at most the points' distance.)"""
     lwr = F[o.lwradius + lk]
     L0, L1, L2 = LC[lk, 0], LC[lk, 1], LC[lk, 2]
@@ -348,7 +350,7 @@ def _link_clear(I: IntArray, F: FloatArray, o: Off, X: FloatArray, lk: int, LC: 
     for k in range(n):
         clear &= (low[k] >= margin) | bad[k]
     for k in range(n - 1):
-        clear &= low[k] + low[k + 1] >= 2.0 * margin + reach * (t[k + 1] - t[k])
+        clear &= low[k] + low[k + 1] >= 2.0 * margin + reach * dt[k]
     return clear
 
 
@@ -428,14 +430,14 @@ def _self_hits(I: IntArray, F: FloatArray, o: Off, C: FloatArray, LC: FloatArray
 
 @njit(cache=True, inline="always")
 def _self_values(I: IntArray, F: FloatArray, o: Off, X: FloatArray, C: FloatArray,
-                 LC: FloatArray, cap: float, t: FloatArray, G: FloatArray, passes: BoolArray,
+                 LC: FloatArray, cap: float, dt: FloatArray, G: FloatArray, passes: BoolArray,
                  bad: BoolArray, low: FloatArray, n: int) -> None:  # fmt: skip
     """``G[p, k]`` = min(gap of self pair p in lane k, cap) and ``bad[k] |=`` a gap is
     negative (an overlap), as :func:`~planning.compiled.geometry.group_gaps`, for the pair
     groups that need them. A group ``passes[g]`` (its gaps not written) when the gap of its
     links' bounding spheres, which no pair's gap is below, is >= 0 in every lane and
     satisfies the two-sample bound with the group's largest reach (``X[o.xgreach + g]``)
-    between every two neighbouring lanes (at fractions ``t``): then every pair of the group
+    between every two neighbouring lanes (``dt[k]`` apart): then every pair of the group
     does both, and writing their gaps could not change the dense certificate's answer."""
     for g in range(o.G):
         a, b = I[o.glinks + 2 * g], I[o.glinks + 2 * g + 1]
@@ -448,7 +450,7 @@ def _self_values(I: IntArray, F: FloatArray, o: Off, X: FloatArray, C: FloatArra
             apart &= low[k] >= 0.0
         reach = X[o.xgreach + g]
         for k in range(n - 1):
-            apart &= low[k] + low[k + 1] >= reach * (t[k + 1] - t[k])
+            apart &= low[k] + low[k + 1] >= reach * dt[k]
         passes[g] = apart
         if apart:
             continue
@@ -465,23 +467,98 @@ def _self_values(I: IntArray, F: FloatArray, o: Off, X: FloatArray, C: FloatArra
                 Gp[k] = min(Gp[k], cap)
 
 
+@njit(cache=True, inline="always")
+def _dense_values(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
+                  q0: FloatArray, q1: FloatArray, margin: float, t: FloatArray, dt: FloatArray,
+                  qv: FloatArray, sn: FloatArray, cs: FloatArray, W: FloatArray, C: FloatArray,
+                  LC: FloatArray, V: FloatArray, G: FloatArray, bad: BoolArray, need: BoolArray,
+                  passes: BoolArray, clear: BoolArray, S: Scratch, low: FloatArray,
+                  n: int) -> bool:  # fmt: skip
+    """The capped clearances ``V`` and gaps ``G`` of the edge's samples at fractions
+    ``t[:n]``; False as soon as one sample is found invalid. The values of a link's spheres
+    are left out where the link's bounding ball passes among primitives (``clear``,
+    :func:`_link_clear`), and the gaps of a pair group where its two links' balls pass
+    (``passes``, :func:`_self_values`), between the neighbours ``dt`` names (lanes k and
+    k + 1 are ``dt[k]`` of the edge apart, 0 where they are not neighbouring samples)."""
+    bad[:n] = False
+    for j in range(o.dof):
+        lo, hi, v, a, d = F[o.lower + j], F[o.upper + j], qv[j], q0[j], q1[j] - q0[j]
+        for k in range(n):
+            v[k] = a + t[k] * d
+            bad[k] |= not ((lo <= v[k]) & (v[k] <= hi))
+    _angles(I, o, qv, sn, cs, n)
+    _place_joints(I, F, o, qv, sn, cs, W, n)
+    _place_spheres(I, F, o, W, C, LC, n)
+    # the world values (_world_values), none for a link whose bounding ball already passes
+    # among the primitives (clear: every link in the empty world, unless its reach is long)
+    clear[:] = False
+    for lk in range(o.L):
+        if not I[o.lworld + lk]:
+            continue
+        if not is_cloud_lattice(field) and _link_clear(
+            I, F, o, X, lk, LC, dt, CLEARANCE_CAP, margin, bad, need, low, n
+        ):
+            clear[lk] = True
+            continue
+        _link_world_values(I, F, field, o, lk, C, LC, CLEARANCE_CAP, margin, V, bad, need, S, n)
+    for k in range(n):  # a sample in collision (or outside the limits) refuses the edge
+        if bad[k]:
+            return False
+    _self_values(I, F, o, X, C, LC, CLEARANCE_CAP, dt, G, passes, bad, low, n)
+    for k in range(n):
+        if bad[k]:
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _bound_fails(I: IntArray, X: FloatArray, o: Off, margin: float, V: FloatArray,
+                 G: FloatArray, clear: BoolArray, passes: BoolArray, dt: float,
+                 k: int) -> bool:  # fmt: skip
+    """Do lanes k and k + 1 (neighbouring samples, ``dt`` of the edge apart) fail the
+    two-sample bound (the links and pair groups left out pass it)?"""
+    for lk in range(o.L):
+        if clear[lk]:
+            continue
+        for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
+            s = I[o.lsph + i]
+            bound = 2.0 * margin + X[o.xreach + s] * dt
+            if I[o.sworld + s] and V[s, k] + V[s, k + 1] < bound:
+                return True
+    for g in range(o.G):
+        if passes[g]:
+            continue
+        for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
+            if G[p, k] + G[p, k + 1] < X[o.xpreach + p] * dt:
+                return True
+    return False
+
+
 @njit(cache=True)
 def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
                  q0: FloatArray, q1: FloatArray, margin: float) -> int:  # fmt: skip
-    """The dense certificate of the edge q0 -> q1 (:mod:`planning.collision`), its
-    DENSE_SAMPLES evenly spaced configurations one per lane: -1 if one of them is invalid,
-    else the first k whose samples k and k + 1 fail the two-sample bound (DENSE_SAMPLES - 1
-    if none: the edge is certified). The reach of every sphere and pair over the edge is in
-    ``X`` (by :func:`~planning.compiled.validity.edge_steps`).
+    """The dense certificate of the edge q0 -> q1 (:mod:`planning.collision`): -1 if one of
+    its samples is invalid, else the first fine k whose samples k and k + 1 fail the
+    two-sample bound (DENSE_SAMPLES - 1 if none: the edge is certified). The reach of every
+    sphere and pair over the edge is in ``X`` (by
+    :func:`~planning.compiled.validity.edge_steps`).
 
-    The values of a link's spheres are left out where the link's bounding ball passes
-    among primitives (:func:`_link_clear`), and the gaps of a pair group where its two
-    links' balls pass (:func:`_self_values`). Each is a lower bound of the values it stands
-    for, so it can only pass where they all pass, and the answer is the reference's, which
-    computes every value. On rrtc's raw edges, vertex-reduction skips and shortcut candidates
-    of Box, Bins and the shelves, 48% of the world spheres' values and 56% of the pair gaps
-    not skipped as far apart are left out (simulated in numpy)."""
+    One pass of all the samples, one per lane, or (:func:`~planning.collision.coarse_first`)
+    two: every DENSE_STRIDE-th sample, then the samples of the coarse intervals that fail
+    the bound (ends included: the lanes of a run of such intervals are neighbouring samples,
+    and the last of one run and the first of the next are not, ``dt`` 0). Each pass leaves
+    out the values of links and pair groups whose bounding balls already pass
+    (:func:`_dense_values`); each is a lower bound of the values it stands for, so it can
+    only pass where they all pass, and the answer is the reference's, which computes every
+    value. On rrtc's raw edges, vertex-reduction skips and
+    shortcut candidates of Box, Bins and the shelves, 48% of the world spheres' values and
+    56% of the pair gaps not skipped as far apart are left out (simulated in numpy, one pass
+    of the 64 samples)."""
     K = DENSE_SAMPLES
+    top = 0.0
+    for s in range(o.S):
+        top = max(top, X[o.xreach + s])
+    c = DENSE_STRIDE if _coarse_first(top, margin) else 1
     qv = np.empty((o.dof, K))
     sn, cs = np.zeros((o.J, K)), np.zeros((o.J, K))
     W = np.empty((o.J, 12, K))
@@ -490,52 +567,36 @@ def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off
     bad, need, passes = np.zeros(K, np.bool_), np.empty(K, np.bool_), np.empty(o.G, np.bool_)
     clear = np.empty(o.L, np.bool_)
     S = _scratch(K)
-    t, low = np.empty(K), np.empty(K)
-    for k in range(K):
-        t[k] = k / (K - 1)
-    for j in range(o.dof):
-        lo, hi, v, a, d = F[o.lower + j], F[o.upper + j], qv[j], q0[j], q1[j] - q0[j]
-        for k in range(K):
-            v[k] = a + t[k] * d
-            bad[k] |= not ((lo <= v[k]) & (v[k] <= hi))
-    _angles(I, o, qv, sn, cs, K)
-    _place_joints(I, F, o, qv, sn, cs, W, K)
-    _place_spheres(I, F, o, W, C, LC, K)
-    # the world values (_world_values), none for a link whose bounding ball already passes
-    # among the primitives (clear: every link in the empty world, unless its reach is long)
-    clear[:] = False
-    for lk in range(o.L):
-        if not I[o.lworld + lk]:
-            continue
-        if not is_cloud_lattice(field) and _link_clear(
-            I, F, o, X, lk, LC, t, CLEARANCE_CAP, margin, bad, need, low, K
-        ):
-            clear[lk] = True
-            continue
-        _link_world_values(I, F, field, o, lk, C, LC, CLEARANCE_CAP, margin, V, bad, need, S, K)
-    for k in range(K):  # a sample in collision (or outside the limits) refuses the edge
-        if bad[k]:
+    t, dt, low, idx = np.empty(K), np.zeros(K), np.empty(K), np.empty(K, np.int64)
+    n = (K - 1) // c + 1
+    for k in range(n):
+        idx[k] = c * k
+    for refine in range(2):  # the coarse samples, then the failing intervals' samples
+        for k in range(n):
+            t[k] = idx[k] / (K - 1)
+        for k in range(n - 1):  # neighbours: every coarse pair, consecutive refined samples
+            near = refine == 0 or idx[k + 1] == idx[k] + 1
+            dt[k] = t[k + 1] - t[k] if near else 0.0
+        if not _dense_values(I, F, field, X, o, q0, q1, margin, t, dt, qv, sn, cs, W, C, LC,
+                             V, G, bad, need, passes, clear, S, low, n):  # fmt: skip
             return -1
-    _self_values(I, F, o, X, C, LC, CLEARANCE_CAP, t, G, passes, bad, low, K)
-    for k in range(K):
-        if bad[k]:
-            return -1
-    for k in range(K - 1):
-        dt = t[k + 1] - t[k]
-        for lk in range(o.L):
-            if clear[lk]:
+        if refine or c == 1:
+            for k in range(n - 1):
+                if dt[k] > 0.0 and _bound_fails(I, X, o, margin, V, G, clear, passes, dt[k], k):
+                    return int(idx[k])
+            return K - 1
+        # the coarse intervals that fail the bound: their samples, in runs
+        m, last = 0, -1
+        for k in range(n - 1):
+            if not _bound_fails(I, X, o, margin, V, G, clear, passes, dt[k], k):
                 continue
-            for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
-                s = I[o.lsph + i]
-                bound = 2.0 * margin + X[o.xreach + s] * dt
-                if I[o.sworld + s] and V[s, k] + V[s, k + 1] < bound:
-                    return k
-        for g in range(o.G):
-            if passes[g]:
-                continue
-            for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
-                if G[p, k] + G[p, k + 1] < X[o.xpreach + p] * dt:
-                    return k
+            for f in range(c * k if last != c * k else c * k + 1, c * (k + 1) + 1):
+                idx[m] = f  # (this loop reads no index)
+                m += 1
+            last = c * (k + 1)
+        if m == 0:
+            return K - 1
+        n = m
     return K - 1
 
 

@@ -15,7 +15,9 @@ from planning.collision import (
     CLEARANCE_CAP,
     DENSE_MIN_STEPS,
     DENSE_SAMPLES,
+    DENSE_STRIDE,
     SphereCollisionChecker,
+    coarse_first,
 )
 from planning.compiled import validity
 from planning.compiled.checker import CompiledChecker
@@ -293,6 +295,24 @@ def test_the_dense_certificate_proves_what_it_claims(
     assert (prefix == -1).sum() >= 10, "edges one of its samples refuses"
     assert ((prefix >= 0) & (prefix < DENSE_SAMPLES - 1)).sum() >= 4, "edges walked on"
     assert (~long).sum() >= 10, "short edges, walked from the start"
+    # both kinds of dense certificate (coarse_first): one pass of all the samples, and coarse
+    # samples first with some coarse intervals certified whole and some refined
+    coarse = np.array(
+        [
+            coarse_first(float(_reaches(ref, a, b)[0].max()), ref.margin)
+            for a, b in zip(starts, ends, strict=True)
+        ]
+    )
+    assert (long & ~coarse).sum() >= 10, "long edges sampled in one pass"
+    strided = np.arange(0, DENSE_SAMPLES, DENSE_STRIDE)
+    mixed = [
+        holds is not None and 0 < holds.sum() < len(holds)
+        for holds in (
+            ref._dense_bounds(a, b, strided, *_reaches(ref, a, b))
+            for a, b in zip(starts[long & coarse], ends[long & coarse], strict=True)
+        )
+    ]
+    assert sum(mixed) >= 10, "coarse intervals certified whole beside refined ones"
     # the compiled certificate leaves out the links and pair groups whose bounding balls
     # already pass (lanes._link_clear, lanes._self_values) and must find the same
     I, F, field = fast.kernel_tables().args()  # noqa: E741 (layout names)
@@ -366,9 +386,10 @@ def test_pair_groups_whose_balls_are_apart_but_fail_the_bound_are_not_left_out(
     # A pair group may be left out only when its links' balls are apart in every lane AND
     # pass the two-sample bound. Edges where some group is apart in every lane but fails the
     # bound are where a skip that forgot the bound would answer otherwise: among random long
-    # edges in the empty world, about a quarter are such edges, and on 4% of those the
-    # forgotten bound changes the first failing interval (measured with the bound removed
-    # from lanes._self_values). A group's balls overlapping in a lane need no edges of their
+    # edges in the empty world, 990 of 992 are such edges in the coarse pass (every
+    # DENSE_STRIDE-th sample). When the certificate was one pass of 64 lanes, about a quarter
+    # were, and on 4% of those the forgotten bound changed the first failing interval
+    # (measured with the bound removed from lanes._self_values). A group's balls overlapping in a lane need no edges of their
     # own: the gap cannot change by more than the reach between lanes, so an overlap in one
     # lane already fails the bound with its neighbour.
     ref, fast = _both(robot, spheres, None)
@@ -376,13 +397,13 @@ def test_pair_groups_whose_balls_are_apart_but_fail_the_bound_are_not_left_out(
     starts, ends = robot.sample_uniform(rng, 1500), robot.sample_uniform(rng, 1500)
     keep = ref.config_valid(starts) & ref.config_valid(ends)
     starts, ends = starts[keep], ends[keep]
-    # each group's ball gap in the 64 lanes, capped as the certificate caps it
+    # each group's ball gap in the coarse pass's lanes, capped as the certificate caps it
     groups = ref._link_groups
     ball_a, ball_b = [g[0] for g in groups], [g[1] for g in groups]
-    t = np.linspace(0.0, 1.0, DENSE_SAMPLES)
+    t = np.arange(0, DENSE_SAMPLES, DENSE_STRIDE) / (DENSE_SAMPLES - 1)
     lanes = starts[:, None] + t[None, :, None] * (ends - starts)[:, None]
     points = ref.kin.points(lanes.reshape(-1, robot.dof), ref.point_joint, ref.point_local)
-    points = points.reshape(len(starts), DENSE_SAMPLES, -1, 3)
+    points = points.reshape(len(starts), len(t), -1, 3)
     ball_gap = np.linalg.norm(points[:, :, ball_a] - points[:, :, ball_b], axis=3)
     ball_gap = np.minimum(ball_gap - np.sqrt([g[3] for g in groups]), CLEARANCE_CAP)
     pair_reach = np.abs(ends - starts) @ ref._pair_displacement.T  # (edges, pairs), as _reaches
