@@ -19,9 +19,9 @@ primitives, 2.2 -> 4.0-4.6M against a 50,000-point cloud, 2.0 -> 9.0M in the emp
 
 :func:`dense_prefix` puts the same steps to a second use: a long edge's evenly spaced
 samples, one per lane (where it pays, every DENSE_STRIDE-th first, then those of the
-intervals that need them), with their capped clearances and self-pair gaps, for the dense certificate of
-:mod:`planning.collision` (the walk takes its samples one after the other, each placed by
-the last; these are placed in advance, so they can go together).
+intervals that need them), with their capped clearances and self-pair gaps, for the dense
+certificate of :mod:`planning.collision` (the walk takes its samples one after the other,
+each placed by the last; these are placed in advance, so they can go together).
 
 How the loops are written so that they vectorize: numba cannot tell LLVM that two arrays do
 not overlap, so LLVM checks it at run time before a vector loop, and gives up beyond a
@@ -333,8 +333,8 @@ def _link_clear(I: IntArray, F: FloatArray, o: Off, X: FloatArray, lk: int, LC: 
     the link's world spheres (``X[o.xreach + s]``) between every two neighbouring lanes
     (lanes k and k + 1 ``dt[k]`` of the edge apart)? Then each of its world spheres, inside
     the ball, does both (exact distances are 1-Lipschitz), and their own values cannot
-    change the dense certificate's answer. (Not for cloud worlds: a lattice's lower bounds at two points need not differ
-    by at most the points' distance.)"""
+    change the dense certificate's answer. (Not for cloud worlds: a lattice's lower bounds
+    at two points need not differ by at most the points' distance.)"""
     lwr = F[o.lwradius + lk]
     L0, L1, L2 = LC[lk, 0], LC[lk, 1], LC[lk, 2]
     low[:n] = cap

@@ -389,9 +389,9 @@ def test_pair_groups_whose_balls_are_apart_but_fail_the_bound_are_not_left_out(
     # edges in the empty world, 990 of 992 are such edges in the coarse pass (every
     # DENSE_STRIDE-th sample). When the certificate was one pass of 64 lanes, about a quarter
     # were, and on 4% of those the forgotten bound changed the first failing interval
-    # (measured with the bound removed from lanes._self_values). A group's balls overlapping in a lane need no edges of their
-    # own: the gap cannot change by more than the reach between lanes, so an overlap in one
-    # lane already fails the bound with its neighbour.
+    # (measured with the bound removed from lanes._self_values). A group's balls overlapping
+    # in a lane need no edges of their own: the gap cannot change by more than the reach
+    # between lanes, so an overlap in one lane already fails the bound with its neighbour.
     ref, fast = _both(robot, spheres, None)
     rng = np.random.default_rng(5)
     starts, ends = robot.sample_uniform(rng, 1500), robot.sample_uniform(rng, 1500)
