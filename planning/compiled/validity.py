@@ -280,7 +280,7 @@ def edge_screen(
 
     A cheap screen for the planners, before :func:`edge_ok`: three configuration checks
     (~0.6 us each) against a certification that costs tens of microseconds on a long edge
-    (the dense certificate's 64 samples) and, on a short one near an obstacle, can creep
+    (the dense certificate's samples, up to 64) and, on a short one near an obstacle, can creep
     along for many samples before it reaches a collision. It can only add rejections (a
     point invalid by the lattice's lower bound might lie on an edge the certification would
     pass), so a planner that screens keeps every edge it takes certified; answers to edge
