@@ -384,34 +384,48 @@ def test_pair_groups_whose_balls_are_apart_but_fail_the_bound_are_not_left_out(
     robot: RobotModel, spheres: SphereModel
 ) -> None:
     # A pair group may be left out only when its links' balls are apart in every lane AND
-    # pass the two-sample bound. Edges where some group is apart in every lane but fails the
-    # bound are where a skip that forgot the bound would answer otherwise: among random long
-    # edges in the empty world, 990 of 992 are such edges in the coarse pass (every
-    # DENSE_STRIDE-th sample). When the certificate was one pass of 64 lanes, about a quarter
-    # were, and on 4% of those the forgotten bound changed the first failing interval
-    # (measured with the bound removed from lanes._self_values). A group's balls overlapping
-    # in a lane need no edges of their own: the gap cannot change by more than the reach
-    # between lanes, so an overlap in one lane already fails the bound with its neighbour.
+    # pass the two-sample bound. Edges where some group is apart in every lane of the
+    # certificate's first pass but fails the bound are where a skip that forgot the bound
+    # would answer otherwise. Random long edges in the empty world take one pass of all the
+    # samples (coarse_first); a quarter of them are such edges (310 of 1,317), and on 4% of
+    # those the forgotten bound changed the first failing interval (measured with the bound
+    # removed from lanes._self_values). The same edges cut to a fifth mostly take the coarse
+    # samples first, and a fifth of those are such edges there (183 of 855). A group's balls overlapping in a lane
+    # need no edges of their own: the gap cannot change by more than the reach between
+    # lanes, so an overlap in one lane already fails the bound with its neighbour.
     ref, fast = _both(robot, spheres, None)
     rng = np.random.default_rng(5)
     starts, ends = robot.sample_uniform(rng, 1500), robot.sample_uniform(rng, 1500)
+    ends = np.concatenate([ends, starts + 0.2 * (ends - starts)])
+    starts = np.concatenate([starts, starts])
     keep = ref.config_valid(starts) & ref.config_valid(ends)
     starts, ends = starts[keep], ends[keep]
-    # each group's ball gap in the coarse pass's lanes, capped as the certificate caps it
+    coarse = np.array(
+        [
+            coarse_first(float(_reaches(ref, a, b)[0].max()), ref.margin)
+            for a, b in zip(starts, ends, strict=True)
+        ]
+    )
     groups = ref._link_groups
     ball_a, ball_b = [g[0] for g in groups], [g[1] for g in groups]
-    t = np.arange(0, DENSE_SAMPLES, DENSE_STRIDE) / (DENSE_SAMPLES - 1)
-    lanes = starts[:, None] + t[None, :, None] * (ends - starts)[:, None]
-    points = ref.kin.points(lanes.reshape(-1, robot.dof), ref.point_joint, ref.point_local)
-    points = points.reshape(len(starts), len(t), -1, 3)
-    ball_gap = np.linalg.norm(points[:, :, ball_a] - points[:, :, ball_b], axis=3)
-    ball_gap = np.minimum(ball_gap - np.sqrt([g[3] for g in groups]), CLEARANCE_CAP)
     pair_reach = np.abs(ends - starts) @ ref._pair_displacement.T  # (edges, pairs), as _reaches
     group_reach = np.stack([pair_reach[:, g[2]].max(axis=1) for g in groups], axis=1)
-    apart = (ball_gap >= 0).all(axis=1)
-    bound = (ball_gap[:, :-1] + ball_gap[:, 1:] >= group_reach[:, None] * t[1]).all(axis=1)
-    edge = (apart & ~bound).any(axis=1)
-    assert edge.sum() >= 150, "edges where a group is apart in every lane but fails its bound"
+    edge = np.zeros(len(starts), bool)
+    for kind, stride in ((~coarse, 1), (coarse, DENSE_STRIDE)):
+        # each group's ball gap in the first pass's lanes, capped as the certificate caps it
+        t = np.arange(0, DENSE_SAMPLES, stride) / (DENSE_SAMPLES - 1)
+        a, b = starts[kind], ends[kind]
+        lanes = a[:, None] + t[None, :, None] * (b - a)[:, None]
+        points = ref.kin.points(lanes.reshape(-1, robot.dof), ref.point_joint, ref.point_local)
+        points = points.reshape(len(a), len(t), -1, 3)
+        ball_gap = np.linalg.norm(points[:, :, ball_a] - points[:, :, ball_b], axis=3)
+        ball_gap = np.minimum(ball_gap - np.sqrt([g[3] for g in groups]), CLEARANCE_CAP)
+        apart = (ball_gap >= 0).all(axis=1)
+        reach = group_reach[kind][:, None]
+        bound = (ball_gap[:, :-1] + ball_gap[:, 1:] >= reach * t[1]).all(axis=1)
+        edge[kind] = (apart & ~bound).any(axis=1)
+    assert (edge & ~coarse).sum() >= 150, "one-pass edges where a group is apart but fails"
+    assert (edge & coarse).sum() >= 150, "coarse-first edges where a group is apart but fails"
     expected, found = _first_failing_intervals(ref, fast, starts[edge], ends[edge])
     np.testing.assert_array_equal(found, expected)
 
