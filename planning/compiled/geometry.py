@@ -294,3 +294,14 @@ def _reach_gap(X: FloatArray, F: FloatArray, o: Off, i: int, lk: int) -> float:
     a, b = o.xc + 3 * i, o.xlc + 3 * lk
     dx, dy, dz = X[a] - X[b], X[a + 1] - X[b + 1], X[a + 2] - X[b + 2]
     return math.sqrt(dx * dx + dy * dy + dz * dz) - F[o.radii + i] - F[o.lradius + lk]
+
+
+@njit(cache=True, inline="always")
+def _reach_apart(X: FloatArray, F: FloatArray, o: Off, i: int, lk: int) -> bool:
+    """Can sphere i overlap no sphere of link lk, being outside the link's bounding sphere
+    (no nearer than the sum of their radii)? Squared distances, no root: a test, where
+    :func:`_reach_gap` is a value."""
+    a, b = o.xc + 3 * i, o.xlc + 3 * lk
+    dx, dy, dz = X[a] - X[b], X[a + 1] - X[b + 1], X[a + 2] - X[b + 2]
+    reach = F[o.radii + i] + F[o.lradius + lk]
+    return dx * dx + dy * dy + dz * dz >= reach * reach

@@ -409,17 +409,20 @@ def _self_hits(I: IntArray, F: FloatArray, o: Off, C: FloatArray, LC: FloatArray
         if not any_near:
             continue
         lrb = F[o.lradius + b]
-        last = -1
+        last, any_open = -1, False
         for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
             i, j = I[o.pairs + 2 * p], I[o.pairs + 2 * p + 1]
             I0, I1, I2 = C[i, 0], C[i, 1], C[i, 2]
             if i != last:  # pairs come grouped by their first sphere, which is in link a
-                last = i
-                ri = F[o.radii + i]
+                last, any_open = i, False
+                reach = F[o.radii + i] + lrb
+                rr = reach * reach
                 for k in range(n):
                     dx, dy, dz = I0[k] - B0[k], I1[k] - B1[k], I2[k] - B2[k]
-                    far = math.sqrt(dx * dx + dy * dy + dz * dz) - ri - lrb >= 0.0
-                    open_[k] = near[k] & (not far)
+                    open_[k] = near[k] & (not (dx * dx + dy * dy + dz * dz >= rr))
+                    any_open |= open_[k]
+            if not any_open:
+                continue
             r = F[o.radii + i] + F[o.radii + j]
             r2 = r * r
             J0, J1, J2 = C[j, 0], C[j, 1], C[j, 2]

@@ -31,7 +31,7 @@ from numba import njit
 from gaide_core.types import FloatArray, IntArray
 from planning.collision import CLEARANCE_CAP, DENSE_MIN_STEPS, DENSE_SAMPLES, MIN_STEP_DIVISOR
 from planning.compiled.geometry import (
-    _reach_gap,
+    _reach_apart,
     group_gaps,
     link_world_values,
     place_all,
@@ -71,7 +71,7 @@ def self_overlap(I: IntArray, F: FloatArray, X: FloatArray, o: Off) -> bool:
             i, j = I[o.pairs + 2 * p], I[o.pairs + 2 * p + 1]
             if i != last:  # pairs come grouped by their first sphere, which is in link a
                 last = i
-                far = _reach_gap(X, F, o, i, b) >= 0.0
+                far = _reach_apart(X, F, o, i, b)
             if far:
                 continue
             A, B = o.xc + 3 * i, o.xc + 3 * j
