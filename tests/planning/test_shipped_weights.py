@@ -33,22 +33,23 @@ def test_every_model_ships_small_weights_with_a_card(kind: str, robot: RobotMode
 
 
 # The retrained weights kept for comparison (issue 13; Tables I and II with ``--weights`` on
-# them in docs/results.md): (folder, the data set they name, its path count, model).
+# them in docs/results.md): (folder, the data set they name, its path count, model, steps).
 RETRAINED = (
-    [("weights-train50k", "train50k", 50306, kind) for kind in MODEL_KINDS]
+    [("weights-train50k", "train50k", 50306, kind, 5000) for kind in MODEL_KINDS]
     + [
-        ("weights-train50k-tie", "train50k-tie", 50398, kind)
+        ("weights-train50k-tie", "train50k-tie", 50398, kind, 5000)
         for kind in ("gaide", "mpnet", "simpnet")
     ]
     + [
-        ("weights-train50k-clear", "train50k-clear", 50398, kind)
+        ("weights-train50k-clear", "train50k-clear", 50398, kind, 5000)
         for kind in ("gaide", "mpnet", "simpnet")
     ]
     + [
-        ("weights-train50k-clear3", "train50k-clear3", 50398, kind)
+        ("weights-train50k-clear3", "train50k-clear3", 50398, kind, 5000)
         for kind in ("gaide", "mpnet", "simpnet")
     ]
-    + [("weights-train50k-clear3-k2", "train50k-clear3", 50398, kind) for kind in MODEL_KINDS]
+    + [("weights-train50k-clear3-k2", "train50k-clear3", 50398, kind, 5000) for kind in MODEL_KINDS]
+    + [("weights-train50k-band-10k", "train50k-band", 50398, kind, 10000) for kind in MODEL_KINDS]
 )
 
 
@@ -62,14 +63,14 @@ def test_the_shipped_weights_name_the_band_set(kind: str) -> None:
     assert card["model_cfg"]["modes"] == 2 and card["steps"] == 5000
 
 
-@pytest.mark.parametrize(("folder", "data", "paths", "kind"), RETRAINED)
+@pytest.mark.parametrize(("folder", "data", "paths", "kind", "steps"), RETRAINED)
 def test_the_weights_trained_on_the_50k_sets_load_and_name_their_data(
-    folder: str, data: str, paths: int, kind: str, robot: RobotModel
+    folder: str, data: str, paths: int, kind: str, steps: int, robot: RobotModel
 ) -> None:
     path = shipped_checkpoint(kind).parent.parent / folder / f"{kind}.pt"
     ck = load_checkpoint(path, robot, kind)
     card = json.loads(card_path(path).read_text())
-    assert card["sha256"] == file_sha256(path) and card["steps"] == ck.step == 5000
+    assert card["sha256"] == file_sha256(path) and card["steps"] == ck.step == steps
     manifest = path.parent.parent / data / "manifest.json"
     assert card["data_manifest_sha256"] == file_sha256(manifest)
     assert card["data_paths"] == json.loads(manifest.read_text())["paths"] == paths
