@@ -298,8 +298,8 @@ def _reach_gap(X: FloatArray, F: FloatArray, o: Off, i: int, lk: int) -> float:
 
 @njit(cache=True, inline="always")
 def _reach_apart(X: FloatArray, F: FloatArray, o: Off, i: int, lk: int) -> bool:
-    """Can sphere i overlap no sphere of link lk, being outside the link's bounding sphere
-    (no nearer than the sum of their radii)? Squared distances, no root: a test, where
+    """Is sphere i apart from every sphere of link lk: its centre no nearer the link's
+    bounding centre than the sum of the two radii? Squared distances, no root: a test where
     :func:`_reach_gap` is a value."""
     a, b = o.xc + 3 * i, o.xlc + 3 * lk
     dx, dy, dz = X[a] - X[b], X[a + 1] - X[b + 1], X[a + 2] - X[b + 2]
