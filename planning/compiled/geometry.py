@@ -1,8 +1,9 @@
 """Compiled geometry: joint poses, sphere centres, and sphere-to-world and sphere-to-sphere
 clearances.
 
-Every function mirrors a numpy reference operation for operation, so that the two agree to
-rounding: :class:`~planning.kinematics.BatchKinematics` (joint chain, Rodrigues rotation),
+Every function mirrors a numpy reference, so that the two agree to rounding, operation for
+operation except where a docstring says how it differs:
+:class:`~planning.kinematics.BatchKinematics` (joint chain, Rodrigues rotation),
 :meth:`~planning.distance_field.CloudWorld.distance` (lattice look-up lower bound) and
 :meth:`~planning.primitives.PrimitiveWorld.distance` (signed box, cylinder and sphere
 distances). They read the tables ``I``, ``F`` (and the cloud's ``field``) through the offsets
@@ -57,10 +58,27 @@ def place_root(I: IntArray, F: FloatArray, X: FloatArray, o: Off) -> None:
 
 
 @njit(cache=True, inline="always")
+def _rotated(X: FloatArray, p: int, F: FloatArray, K: int, col: int, s: float, c: float) -> float:
+    """Column ``col`` of the parent's rotation row at ``X[p:p + 3]`` times a revolute joint's
+    rotation terms at ``F[K:]`` (``F_PLACE_K``), combined with the angle's sine and cosine."""
+    r0, r1, r2 = X[p], X[p + 1], X[p + 2]
+    return (
+        (r0 * F[K + col] + r1 * F[K + 3 + col] + r2 * F[K + 6 + col])
+        + c * (r0 * F[K + 9 + col] + r1 * F[K + 12 + col] + r2 * F[K + 15 + col])
+        + s * (r0 * F[K + 18 + col] + r1 * F[K + 21 + col] + r2 * F[K + 24 + col])
+    )
+
+
+@njit(cache=True, inline="always")
 def place_joint(I: IntArray, F: FloatArray, X: FloatArray, o: Off, j: int) -> None:
     """World pose of joint j >= 1 at the configuration in ``X[o.xq:]``, from its parent's
     (already placed) and its angle's sine and cosine (by :func:`place_root`): rotation at
-    ``X[o.xR + 9 j]``, translation at ``X[o.xt + 3 j]``."""
+    ``X[o.xR + 9 j]``, translation at ``X[o.xt + 3 j]``.
+
+    A revolute joint's rotation is the parent's times P R(q), the placement's rotation times
+    the rotation about the axis (the numpy reference's product), taken as the three constant
+    terms of ``F_PLACE_K`` combined with cos q and sin q: the same to rounding, in 9 products
+    an entry instead of 21."""
     p = o.xR + 9 * I[o.parent + j]
     tp = o.xt + 3 * I[o.parent + j]
     P = o.place_R + 9 * j
@@ -68,42 +86,33 @@ def place_joint(I: IntArray, F: FloatArray, X: FloatArray, o: Off, j: int) -> No
     a0, a1, a2 = X[p], X[p + 1], X[p + 2]
     b0, b1, b2 = X[p + 3], X[p + 4], X[p + 5]
     c0, c1, c2 = X[p + 6], X[p + 7], X[p + 8]
-    r00 = a0 * F[P] + a1 * F[P + 3] + a2 * F[P + 6]
-    r01 = a0 * F[P + 1] + a1 * F[P + 4] + a2 * F[P + 7]
-    r02 = a0 * F[P + 2] + a1 * F[P + 5] + a2 * F[P + 8]
-    r10 = b0 * F[P] + b1 * F[P + 3] + b2 * F[P + 6]
-    r11 = b0 * F[P + 1] + b1 * F[P + 4] + b2 * F[P + 7]
-    r12 = b0 * F[P + 2] + b1 * F[P + 5] + b2 * F[P + 8]
-    r20 = c0 * F[P] + c1 * F[P + 3] + c2 * F[P + 6]
-    r21 = c0 * F[P + 1] + c1 * F[P + 4] + c2 * F[P + 7]
-    r22 = c0 * F[P + 2] + c1 * F[P + 5] + c2 * F[P + 8]
     tx = X[tp] + (a0 * F[u] + a1 * F[u + 1] + a2 * F[u + 2])
     ty = X[tp + 1] + (b0 * F[u] + b1 * F[u + 1] + b2 * F[u + 2])
     tz = X[tp + 2] + (c0 * F[u] + c1 * F[u + 1] + c2 * F[u + 2])
-    x, y, z = F[o.axis + 3 * j], F[o.axis + 3 * j + 1], F[o.axis + 3 * j + 2]
     kind = I[o.jtype + j]
-    v = X[o.xq + I[o.idxq + j]]
     R = o.xR + 9 * j
     if kind == JOINT_REVOLUTE:
         s, c = X[o.xsc + 2 * j], X[o.xsc + 2 * j + 1]
-        C = 1.0 - c
-        m00, m01, m02 = c + x * x * C, x * y * C - z * s, x * z * C + y * s
-        m10, m11, m12 = y * x * C + z * s, c + y * y * C, y * z * C - x * s
-        m20, m21, m22 = z * x * C - y * s, z * y * C + x * s, c + z * z * C
-        X[R] = r00 * m00 + r01 * m10 + r02 * m20
-        X[R + 1] = r00 * m01 + r01 * m11 + r02 * m21
-        X[R + 2] = r00 * m02 + r01 * m12 + r02 * m22
-        X[R + 3] = r10 * m00 + r11 * m10 + r12 * m20
-        X[R + 4] = r10 * m01 + r11 * m11 + r12 * m21
-        X[R + 5] = r10 * m02 + r11 * m12 + r12 * m22
-        X[R + 6] = r20 * m00 + r21 * m10 + r22 * m20
-        X[R + 7] = r20 * m01 + r21 * m11 + r22 * m21
-        X[R + 8] = r20 * m02 + r21 * m12 + r22 * m22
+        K = o.place_K + 27 * j
+        for row in range(3):
+            for col in range(3):
+                X[R + 3 * row + col] = _rotated(X, p + 3 * row, F, K, col, s, c)
     else:
+        r00 = a0 * F[P] + a1 * F[P + 3] + a2 * F[P + 6]
+        r01 = a0 * F[P + 1] + a1 * F[P + 4] + a2 * F[P + 7]
+        r02 = a0 * F[P + 2] + a1 * F[P + 5] + a2 * F[P + 8]
+        r10 = b0 * F[P] + b1 * F[P + 3] + b2 * F[P + 6]
+        r11 = b0 * F[P + 1] + b1 * F[P + 4] + b2 * F[P + 7]
+        r12 = b0 * F[P + 2] + b1 * F[P + 5] + b2 * F[P + 8]
+        r20 = c0 * F[P] + c1 * F[P + 3] + c2 * F[P + 6]
+        r21 = c0 * F[P + 1] + c1 * F[P + 4] + c2 * F[P + 7]
+        r22 = c0 * F[P + 2] + c1 * F[P + 5] + c2 * F[P + 8]
         X[R], X[R + 1], X[R + 2] = r00, r01, r02
         X[R + 3], X[R + 4], X[R + 5] = r10, r11, r12
         X[R + 6], X[R + 7], X[R + 8] = r20, r21, r22
         if kind == JOINT_PRISMATIC:
+            x, y, z = F[o.axis + 3 * j], F[o.axis + 3 * j + 1], F[o.axis + 3 * j + 2]
+            v = X[o.xq + I[o.idxq + j]]
             tx += (r00 * x + r01 * y + r02 * z) * v
             ty += (r10 * x + r11 * y + r12 * z) * v
             tz += (r20 * x + r21 * y + r22 * z) * v

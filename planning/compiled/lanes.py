@@ -97,28 +97,23 @@ def _angles(I: IntArray, o: Off, qv: FloatArray, sn: FloatArray, cs: FloatArray,
 
 
 @njit(cache=True, inline="always")
-def _rotation_entry(
-    A0: FloatArray, A1: FloatArray, A2: FloatArray, f0: Vec3, f1: Vec3, f2: Vec3,
-    sn: FloatArray, cs: FloatArray, x: float, y: float, z: float, col: int, out: FloatArray,
-    n: int,
-) -> None:  # fmt: skip
-    """``out[k]``: column ``col`` of one row of a revolute joint's rotation in lane k: the
-    parent's row (A0, A1, A2) times the placement's columns f0, f1, f2, times the rotation
-    about the axis (x, y, z), each product built as in
+def _rotation_entry(A0: FloatArray, A1: FloatArray, A2: FloatArray, F: FloatArray, K: int,
+                    col: int, sn: FloatArray, cs: FloatArray, out: FloatArray,
+                    n: int) -> None:  # fmt: skip
+    """``out[k]``: column ``col`` of one row of a revolute joint's world rotation in lane k:
+    the parent's row (A0, A1, A2) times the joint's three rotation terms at ``F[K:]``
+    (``F_PLACE_K``), combined with the angle's cosine and sine, as in
     :func:`~planning.compiled.geometry.place_joint`."""
+    a = (F[K + col], F[K + 3 + col], F[K + 6 + col])
+    b = (F[K + 9 + col], F[K + 12 + col], F[K + 15 + col])
+    c = (F[K + 18 + col], F[K + 21 + col], F[K + 24 + col])
     for k in range(n):
-        a0, a1, a2 = A0[k], A1[k], A2[k]
-        r0 = a0 * f0[0] + a1 * f0[1] + a2 * f0[2]
-        r1 = a0 * f1[0] + a1 * f1[1] + a2 * f1[2]
-        r2 = a0 * f2[0] + a1 * f2[1] + a2 * f2[2]
-        s, c = sn[k], cs[k]
-        C = 1.0 - c
-        if col == 0:
-            out[k] = r0 * (c + x * x * C) + r1 * (y * x * C + z * s) + r2 * (z * x * C - y * s)
-        elif col == 1:
-            out[k] = r0 * (x * y * C - z * s) + r1 * (c + y * y * C) + r2 * (z * y * C + x * s)
-        else:
-            out[k] = r0 * (x * z * C + y * s) + r1 * (y * z * C - x * s) + r2 * (c + z * z * C)
+        r0, r1, r2 = A0[k], A1[k], A2[k]
+        out[k] = (
+            (r0 * a[0] + r1 * a[1] + r2 * a[2])
+            + cs[k] * (r0 * b[0] + r1 * b[1] + r2 * b[2])
+            + sn[k] * (r0 * c[0] + r1 * c[1] + r2 * c[2])
+        )
 
 
 @njit(cache=True, inline="always")
@@ -145,7 +140,7 @@ def _place_joints(I: IntArray, F: FloatArray, o: Off, qv: FloatArray, sn: FloatA
             A0, A1, A2 = A[3 * r], A[3 * r + 1], A[3 * r + 2]
             if kind == JOINT_REVOLUTE:
                 for col in range(3):
-                    _rotation_entry(A0, A1, A2, f0, f1, f2, sn[j], cs[j], x, y, z, col,
+                    _rotation_entry(A0, A1, A2, F, o.place_K + 27 * j, col, sn[j], cs[j],
                                     O[3 * r + col], n)  # fmt: skip
             else:
                 for col, f in enumerate((f0, f1, f2)):

@@ -67,7 +67,12 @@ F_PDISP = 16  # (P, dof) bound on the change of pair p's centre distance per rad
 # oracle asks of that sphere alone; 0 otherwise), and the links' bounding radii over them.
 F_WRADII = 17  # (S,) m
 F_LWRADIUS = 18  # (L,) m
-N_F = 19
+# (J, 3, 3, 3) a revolute joint's placement rotation P times the three terms of the rotation
+# about its axis a (Rodrigues): P a a^T, P (I - a a^T) and P [a]x, so that the joint's world
+# rotation is parent @ (K0 + cos q K1 + sin q K2): 9 products an entry where the placement's
+# product and the rotation's took 21 (geometry.place_joint).
+F_PLACE_K = 19
+N_F = 20
 
 JOINT_ROOT = 0
 JOINT_REVOLUTE = 1
@@ -94,6 +99,7 @@ Off = namedtuple(
         # offsets into F
         "place_R", "place_t", "axis", "base", "slocal", "radii", "lcentre", "lradius", "disp",
         "lower", "upper", "cloud", "pR", "pt", "pdim", "pbound", "pdisp", "wradii", "lwradius",
+        "place_K",
         # offsets into X (scratch), and its size
         "xR", "xt", "xc", "xlc", "xwv", "xpv", "xreach", "xpreach", "xgreach", "xgcapped",
         "xsc", "xq", "xsize",
@@ -161,5 +167,6 @@ def offsets(I: IntArray) -> Off:
         _fo(I, F_RADII), _fo(I, F_LCENTRE), _fo(I, F_LRADIUS), _fo(I, F_DISP), _fo(I, F_LOWER),
         _fo(I, F_UPPER), _fo(I, F_CLOUD), _fo(I, F_PR), _fo(I, F_PT), _fo(I, F_PDIM),
         _fo(I, F_PBOUND), _fo(I, F_PDISP), _fo(I, F_WRADII), _fo(I, F_LWRADIUS),
+        _fo(I, F_PLACE_K),
         xR, xt, xc, xlc, xwv, xpv, xreach, xpreach, xgreach, xgcapped, xsc, xq, xq + dof,
     )  # fmt: skip

@@ -47,8 +47,22 @@ def checker_tables(checker: SphereCollisionChecker) -> Tables:
     wi, wf, field = _world_slots(checker.world)
     pairs = ri[L.I_PAIRS].reshape(-1, 2)
     extra = [checker.pair_displacement(pairs), checker.world_radii, lwradius]
+    extra.append(rotation_terms(checker.kin.placements_R, checker.kin.axes))
     ints, floats = L.pack(ri + wi, rf + wf + extra)
     return Tables(ints, floats, field)
+
+
+def rotation_terms(placements_R: FloatArray, axes: FloatArray) -> FloatArray:
+    """(J, 3, 3, 3): for each joint, its placement's rotation P times the three terms of
+    the rotation about its unit axis a (Rodrigues: R(q) = a a^T + cos q (I - a a^T) +
+    sin q [a]x), the ``F_PLACE_K`` slot. The same rotation as the numpy reference's
+    ``P @ R(q)``, to rounding."""
+    out = np.zeros((len(axes), 3, 3, 3))
+    for j, (P, a) in enumerate(zip(placements_R, axes, strict=True)):
+        outer = np.outer(a, a)
+        cross = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+        out[j] = [P @ outer, P @ (np.eye(3) - outer), P @ cross]
+    return out
 
 
 def _robot_slots(
