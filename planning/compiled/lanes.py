@@ -26,8 +26,9 @@ each placed by the last; these are placed in advance, so they can go together).
 How the loops are written so that they vectorize: numba cannot tell LLVM that two arrays do
 not overlap, so LLVM checks it at run time before a vector loop, and gives up beyond a
 handful of such checks. Each loop over the lanes therefore writes one array and reads at
-most eight; a joint's pose is twelve loops, one per entry (each recomputes the three
-products it needs from the parent's row: cheap against scalar code). Boolean masks are
+most eight; a joint's pose is twelve loops, one per entry, each from the parent's row and
+constants (a revolute joint's entry: 9 products with its three rotation terms,
+``F_PLACE_K``). Boolean masks are
 combined with ``&`` and ``|``, never ``and``/``or``, which would branch per lane.
 """
 
