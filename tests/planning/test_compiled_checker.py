@@ -390,9 +390,10 @@ def test_pair_groups_whose_balls_are_apart_but_fail_the_bound_are_not_left_out(
     # samples (coarse_first); a quarter of them are such edges (310 of 1,317), and on 4% of
     # those the forgotten bound changed the first failing interval (measured with the bound
     # removed from lanes._self_values). The same edges cut to a fifth mostly take the coarse
-    # samples first, and a fifth of those are such edges there (183 of 855). A group's balls overlapping in a lane
-    # need no edges of their own: the gap cannot change by more than the reach between
-    # lanes, so an overlap in one lane already fails the bound with its neighbour.
+    # samples first, and a fifth of those are such edges there (183 of 855). A group's balls
+    # overlapping in a lane need no edges of their own: the gap cannot change by more than
+    # the reach between lanes, so an overlap in one lane already fails the bound with its
+    # neighbour.
     ref, fast = _both(robot, spheres, None)
     rng = np.random.default_rng(5)
     starts, ends = robot.sample_uniform(rng, 1500), robot.sample_uniform(rng, 1500)
