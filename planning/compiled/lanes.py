@@ -76,11 +76,12 @@ def _scratch(K: int) -> Scratch:
 
 
 @njit(cache=True, inline="always")
-def _angles(I: IntArray, o: Off, qv: FloatArray, sn: FloatArray, cs: FloatArray, n: int) -> None:
-    """``sn[j, k]``, ``cs[j, k]``: sine and cosine of revolute joint j's angle in lane k (as
-    :func:`~planning.compiled.geometry.place_root`: the library beyond the reduction's
+def _angles(I: IntArray, o: Off, qv: FloatArray, sn: FloatArray, cs: FloatArray, nj: int,
+            n: int) -> None:  # fmt: skip
+    """``sn[j, k]``, ``cs[j, k]``: sine and cosine of revolute joint j < nj's angle in lane
+    k (as :func:`~planning.compiled.geometry.place_root`: the library beyond the reduction's
     range)."""
-    for j in range(1, o.J):
+    for j in range(1, nj):
         if I[o.jtype + j] != JOINT_REVOLUTE:
             continue
         v, s_, c_ = qv[I[o.idxq + j]], sn[j], cs[j]
@@ -119,15 +120,16 @@ def _rotation_entry(A0: FloatArray, A1: FloatArray, A2: FloatArray, F: FloatArra
 
 @njit(cache=True, inline="always")
 def _place_joints(I: IntArray, F: FloatArray, o: Off, qv: FloatArray, sn: FloatArray,
-                  cs: FloatArray, W: FloatArray, n: int) -> None:  # fmt: skip
+                  cs: FloatArray, W: FloatArray, nj: int, n: int) -> None:  # fmt: skip
     """``W[j, 0:9, k]``: joint j's world rotation (row-major), ``W[j, 9:12, k]`` its
-    translation, in lane k: :func:`~planning.compiled.geometry.place_root` and
+    translation, in lane k, for the joints j < nj (a joint's parent comes before it):
+    :func:`~planning.compiled.geometry.place_root` and
     :func:`~planning.compiled.geometry.place_joint`, lane by lane."""
     for e in range(9):
         W[0, e, :n] = F[o.base + 4 * (e // 3) + e % 3]
     for a in range(3):
         W[0, 9 + a, :n] = F[o.base + 4 * a + 3]
-    for j in range(1, o.J):
+    for j in range(1, nj):
         A, O = W[I[o.parent + j]], W[j]
         P, u = o.place_R + 9 * j, o.place_t + 3 * j
         # the placement's columns: r_{row, col} = A_row . (F[P + col], F[P + 3 + col], ...)
@@ -177,9 +179,10 @@ def _carry(W: FloatArray, j: int, F: FloatArray, src: int, out: FloatArray, n: i
 
 @njit(cache=True, inline="always")
 def _place_spheres(I: IntArray, F: FloatArray, o: Off, W: FloatArray, C: FloatArray,
-                   LC: FloatArray, n: int) -> None:  # fmt: skip
-    """``C[s, a, k]``: sphere s's world centre, ``LC[l, a, k]`` link l's bounding centre."""
-    for j in range(o.J):
+                   LC: FloatArray, nj: int, n: int) -> None:  # fmt: skip
+    """``C[s, a, k]``: sphere s's world centre, ``LC[l, a, k]`` link l's bounding centre, for
+    the links of the joints j < nj."""
+    for j in range(nj):
         for lk in range(I[o.jlstart + j], I[o.jlstart + j + 1]):
             _carry(W, j, F, o.lcentre + 3 * lk, LC[lk], n)
             for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
@@ -375,14 +378,15 @@ def _link_world_values(I: IntArray, F: FloatArray, field: Field, o: Off, lk: int
 @njit(cache=True, inline="always")
 def _world_values(I: IntArray, F: FloatArray, field: Field, o: Off, C: FloatArray,
                   LC: FloatArray, cap: float, margin: float, V: FloatArray, bad: BoolArray,
-                  need: BoolArray, S: Scratch, n: int) -> None:  # fmt: skip
+                  need: BoolArray, S: Scratch, lk0: int, lk1: int, n: int) -> None:  # fmt: skip
     """``V[s, k]`` = min(world clearance of world sphere s in lane k, cap) (as
     :func:`~planning.compiled.validity.sample_values`), and ``bad[k] |=`` one is below
-    the margin. With cap = margin, only that comparison is exact (a configuration check)."""
+    the margin, for the spheres of the links lk0 <= lk < lk1. With cap = margin, only that
+    comparison is exact (a configuration check)."""
     if o.M == 0 and not is_cloud_lattice(field):  # the empty world
         V[:, :n] = cap
         return
-    for lk in range(o.L):
+    for lk in range(lk0, lk1):
         if I[o.lworld + lk]:
             _link_world_values(I, F, field, o, lk, C, LC, cap, margin, V, bad, need, S, n)
 
@@ -485,9 +489,9 @@ def _dense_values(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Of
         for k in range(n):
             v[k] = a + t[k] * d
             bad[k] |= not ((lo <= v[k]) & (v[k] <= hi))
-    _angles(I, o, qv, sn, cs, n)
-    _place_joints(I, F, o, qv, sn, cs, W, n)
-    _place_spheres(I, F, o, W, C, LC, n)
+    _angles(I, o, qv, sn, cs, o.J, n)
+    _place_joints(I, F, o, qv, sn, cs, W, o.J, n)
+    _place_spheres(I, F, o, W, C, LC, o.J, n)
     # the world values (_world_values), none for a link whose bounding ball already passes
     # among the primitives (clear: every link in the empty world, unless its reach is long)
     clear[:] = False
@@ -599,29 +603,82 @@ def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off
     return K - 1
 
 
+@njit(cache=True, inline="always")
+def _first_stage_joints(I: IntArray, o: Off) -> int:
+    """The joints whose links :func:`configs_valid` checks against the world first: the
+    fewest from the base whose links hold at least a third of the world spheres."""
+    total = 0
+    for s in range(o.S):
+        total += I[o.sworld + s]
+    held = 0
+    for j in range(o.J):
+        for lk in range(I[o.jlstart + j], I[o.jlstart + j + 1]):
+            for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
+                held += I[o.sworld + I[o.lsph + i]]
+        if 3 * held >= total:
+            return j + 1
+    return o.J
+
+
+@njit(cache=True, inline="always")
+def _load(I: IntArray, F: FloatArray, o: Off, Q: FloatArray, rows: IntArray, qv: FloatArray,
+          bad: BoolArray, n: int) -> None:  # fmt: skip
+    """``qv[j, k]`` = ``Q[rows[k], j]``; ``bad[k]``: the row is outside the joint limits."""
+    bad[:n] = False
+    for j in range(o.dof):
+        lo, hi, v = F[o.lower + j], F[o.upper + j], qv[j]
+        for k in range(n):
+            v[k] = Q[rows[k], j]
+            bad[k] |= not ((lo <= v[k]) & (v[k] <= hi))
+
+
 @njit(cache=True)
 def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
-    """``out[b]`` = validity of configuration ``Q[b]`` (B, dof), LANES at a time."""
+    """``out[b]`` = validity of configuration ``Q[b]`` (B, dof), LANES at a time, in two
+    stages. The first places the joints nearest the base and checks their links against
+    the world; the second takes the configurations still valid, LANES at a time, and checks
+    the other links and the self pairs. The links near the base meet the table or floor in
+    most invalid configurations (in the benchmark's 10,000 uniform ones, 56% fail on the
+    UR5's shoulder and upper arm, whose 10 spheres are a third of its 31), and a pass's
+    cost is the same whether its lanes are valid or not: gathering the survivors into full
+    passes saves the rest of their work. A configuration's answer does not depend on the
+    others in its pass, so it is the one-stage answer."""
     o = offsets(I)
     K = LANES
+    js = _first_stage_joints(I, o)
+    split = I[o.jlstart + js]
     qv = np.empty((o.dof, K))
     sn, cs = np.zeros((o.J, K)), np.zeros((o.J, K))
     W = np.empty((o.J, 12, K))
     C, LC, V = np.empty((o.S, 3, K)), np.empty((o.L, 3, K)), np.empty((o.S, K))
     bad, open_, near = np.empty(K, np.bool_), np.empty(K, np.bool_), np.empty(K, np.bool_)
     S = _scratch(K)
+    rows = np.empty(K, np.int64)
+    alive = np.empty(Q.shape[0], np.int64)
+    m = 0
     for b0 in range(0, Q.shape[0], K):
         n = min(K, Q.shape[0] - b0)
-        bad[:] = False
-        for j in range(o.dof):
-            lo, hi, v = F[o.lower + j], F[o.upper + j], qv[j]
-            for k in range(n):
-                v[k] = Q[b0 + k, j]
-                bad[k] |= not ((lo <= v[k]) & (v[k] <= hi))
-        _angles(I, o, qv, sn, cs, n)
-        _place_joints(I, F, o, qv, sn, cs, W, n)
-        _place_spheres(I, F, o, W, C, LC, n)
-        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, S, n)
+        for k in range(n):
+            rows[k] = b0 + k
+        _load(I, F, o, Q, rows, qv, bad, n)
+        _angles(I, o, qv, sn, cs, js, n)
+        _place_joints(I, F, o, qv, sn, cs, W, js, n)
+        _place_spheres(I, F, o, W, C, LC, js, n)
+        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, S, 0, split, n)
+        for k in range(n):
+            out[b0 + k] = False
+            if not bad[k]:
+                alive[m] = b0 + k
+                m += 1
+    for a0 in range(0, m, K):
+        n = min(K, m - a0)
+        for k in range(n):
+            rows[k] = alive[a0 + k]
+        _load(I, F, o, Q, rows, qv, bad, n)
+        _angles(I, o, qv, sn, cs, o.J, n)
+        _place_joints(I, F, o, qv, sn, cs, W, o.J, n)
+        _place_spheres(I, F, o, W, C, LC, o.J, n)
+        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, S, split, o.L, n)
         _self_hits(I, F, o, C, LC, bad, open_, near, n)
         for k in range(n):
-            out[b0 + k] = not bad[k]
+            out[rows[k]] = not bad[k]
