@@ -61,6 +61,9 @@ LANES = 64
 
 _sincos = njit(cache=True, inline="always")(sincos)
 _coarse_first = njit(cache=True, inline="always")(coarse_first)
+# m: what a pass's world cap (_world_cap) keeps above the bound it must pass, far above the
+# rounding of values of centimetres
+CAP_SLACK = 1e-9
 
 # A cloud look-up's per-lane values (_cloud_values): nearest value's index, its block's, the
 # way to it, the block's minimum, the value, and whether it is read.
@@ -305,15 +308,19 @@ def _near_primitive(F: FloatArray, o: Off, m: int, L0: FloatArray, L1: FloatArra
 @njit(cache=True, inline="always")
 def _primitive_values(I: IntArray, F: FloatArray, o: Off, lk: int, C: FloatArray,
                       LC: FloatArray, cap: float, V: FloatArray, bad: BoolArray,
-                      need: BoolArray, n: int) -> None:  # fmt: skip
+                      need: BoolArray, prims: BoolArray, n: int) -> None:  # fmt: skip
     """``V[s, k]`` = min(the clearance of world sphere s of link lk from the primitives,
     cap) in lane k, with :func:`~planning.compiled.geometry.link_world_values`'
-    bounding-sphere skips (lanes already in ``bad`` get a value, not their own)."""
+    bounding-sphere skips (lanes already in ``bad`` get a value, not their own), from the
+    primitives m with ``prims[m]`` (the others are known to be at least cap from the
+    link's bounding ball in every lane still valid: see :func:`_link_clear`)."""
     lo, hi = I[o.lstart + lk], I[o.lstart + lk + 1]
     for i in range(lo, hi):
         V[I[o.lsph + i], :n] = cap
     lwr = F[o.lwradius + lk]
     for m in range(o.M):
+        if not prims[m]:
+            continue
         if not _near_primitive(F, o, m, LC[lk, 0], LC[lk, 1], LC[lk, 2], lwr, cap, bad, need, n):
             continue
         for i in range(lo, hi):
@@ -326,20 +333,32 @@ def _primitive_values(I: IntArray, F: FloatArray, o: Off, lk: int, C: FloatArray
 @njit(cache=True, inline="always")
 def _link_clear(I: IntArray, F: FloatArray, o: Off, X: FloatArray, lk: int, LC: FloatArray,
                 dt: FloatArray, cap: float, margin: float, bad: BoolArray, need: BoolArray,
-                low: FloatArray, n: int) -> bool:  # fmt: skip
+                low: FloatArray, one: FloatArray, prims: BoolArray, n: int) -> bool:  # fmt: skip
     """Does the bounding ball of link lk (its world radius) keep from the primitives a
     clearance >= margin in every lane, and the two-sample bound with the largest reach of
     the link's world spheres (``X[o.xreach + s]``) between every two neighbouring lanes
     (lanes k and k + 1 ``dt[k]`` of the edge apart)? Then each of its world spheres, inside
     the ball, does both (exact distances are 1-Lipschitz), and their own values cannot
     change the dense certificate's answer. (Not for cloud worlds: a lattice's lower bounds
-    at two points need not differ by at most the points' distance.)"""
+    at two points need not differ by at most the points' distance.)
+
+    ``prims[m]``: some lane still valid has the ball within cap of primitive m (its own
+    value from m, in ``one``, below the cap); where none has, neither has any of the link's
+    spheres, whose values from m would all be the cap."""
     lwr = F[o.lwradius + lk]
     L0, L1, L2 = LC[lk, 0], LC[lk, 1], LC[lk, 2]
     low[:n] = cap
     for m in range(o.M):
-        if _near_primitive(F, o, m, L0, L1, L2, lwr, cap, bad, need, n):
-            _ball_values(I, F, o, m, L0, L1, L2, lwr, cap, need, low, n)
+        prims[m] = False
+        if not _near_primitive(F, o, m, L0, L1, L2, lwr, cap, bad, need, n):
+            continue
+        one[:n] = cap
+        _ball_values(I, F, o, m, L0, L1, L2, lwr, cap, need, one, n)
+        near = False
+        for k in range(n):
+            near |= one[k] < cap
+            low[k] = min(low[k], one[k])
+        prims[m] = near
     reach = 0.0
     for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
         s = I[o.lsph + i]
@@ -356,7 +375,8 @@ def _link_clear(I: IntArray, F: FloatArray, o: Off, X: FloatArray, lk: int, LC: 
 @njit(cache=True, inline="always")
 def _link_world_values(I: IntArray, F: FloatArray, field: Field, o: Off, lk: int,
                        C: FloatArray, LC: FloatArray, cap: float, margin: float, V: FloatArray,
-                       bad: BoolArray, need: BoolArray, S: Scratch, n: int) -> None:  # fmt: skip
+                       bad: BoolArray, need: BoolArray, prims: BoolArray, S: Scratch,
+                       n: int) -> None:  # fmt: skip
     """``V[s, k]`` = min(world clearance of world sphere s of link lk in lane k, cap), and
     ``bad[k] |=`` one is below the margin (a link the world checks, in a world with
     something in it)."""
@@ -366,7 +386,7 @@ def _link_world_values(I: IntArray, F: FloatArray, field: Field, o: Off, lk: int
             if I[o.sworld + s]:
                 _cloud_values(F, field, o, C[s], F[o.wradii + s], cap, V[s], bad, S, n)
     else:
-        _primitive_values(I, F, o, lk, C, LC, cap, V, bad, need, n)
+        _primitive_values(I, F, o, lk, C, LC, cap, V, bad, need, prims, n)
     for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
         s = I[o.lsph + i]
         if I[o.sworld + s]:
@@ -378,7 +398,8 @@ def _link_world_values(I: IntArray, F: FloatArray, field: Field, o: Off, lk: int
 @njit(cache=True, inline="always")
 def _world_values(I: IntArray, F: FloatArray, field: Field, o: Off, C: FloatArray,
                   LC: FloatArray, cap: float, margin: float, V: FloatArray, bad: BoolArray,
-                  need: BoolArray, S: Scratch, lk0: int, lk1: int, n: int) -> None:  # fmt: skip
+                  need: BoolArray, prims: BoolArray, S: Scratch, lk0: int, lk1: int,
+                  n: int) -> None:  # fmt: skip
     """``V[s, k]`` = min(world clearance of world sphere s in lane k, cap) (as
     :func:`~planning.compiled.validity.sample_values`), and ``bad[k] |=`` one is below
     the margin, for the spheres of the links lk0 <= lk < lk1. With cap = margin, only that
@@ -388,7 +409,8 @@ def _world_values(I: IntArray, F: FloatArray, field: Field, o: Off, C: FloatArra
         return
     for lk in range(lk0, lk1):
         if I[o.lworld + lk]:
-            _link_world_values(I, F, field, o, lk, C, LC, cap, margin, V, bad, need, S, n)
+            _link_world_values(I, F, field, o, lk, C, LC, cap, margin, V, bad, need, prims, S,
+                               n)  # fmt: skip
 
 
 @njit(cache=True, inline="always")
@@ -476,9 +498,9 @@ def _dense_values(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Of
                   qv: FloatArray, sn: FloatArray, cs: FloatArray, W: FloatArray, C: FloatArray,
                   LC: FloatArray, V: FloatArray, G: FloatArray, bad: BoolArray, need: BoolArray,
                   passes: BoolArray, clear: BoolArray, S: Scratch, low: FloatArray,
-                  n: int) -> bool:  # fmt: skip
-    """The capped clearances ``V`` and gaps ``G`` of the edge's samples at fractions
-    ``t[:n]``; False as soon as one sample is found invalid. The values of a link's spheres
+                  one: FloatArray, prims: BoolArray, cap: float, n: int) -> bool:  # fmt: skip
+    """The clearances ``V`` (capped at ``cap``) and gaps ``G`` (at CLEARANCE_CAP) of the
+    edge's samples at fractions ``t[:n]``; False as soon as one sample is found invalid. The values of a link's spheres
     are left out where the link's bounding ball passes among primitives (``clear``,
     :func:`_link_clear`), and the gaps of a pair group where its two links' balls pass
     (``passes``, :func:`_self_values`), between the neighbours ``dt`` names (lanes k and
@@ -499,11 +521,11 @@ def _dense_values(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Of
         if not I[o.lworld + lk]:
             continue
         if not is_cloud_lattice(field) and _link_clear(
-            I, F, o, X, lk, LC, dt, CLEARANCE_CAP, margin, bad, need, low, n
+            I, F, o, X, lk, LC, dt, cap, margin, bad, need, low, one, prims, n
         ):
             clear[lk] = True
             continue
-        _link_world_values(I, F, field, o, lk, C, LC, CLEARANCE_CAP, margin, V, bad, need, S, n)
+        _link_world_values(I, F, field, o, lk, C, LC, cap, margin, V, bad, need, prims, S, n)
     for k in range(n):  # a sample in collision (or outside the limits) refuses the edge
         if bad[k]:
             return False
@@ -535,6 +557,21 @@ def _bound_fails(I: IntArray, X: FloatArray, o: Off, margin: float, V: FloatArra
             if G[p, k] + G[p, k + 1] < X[o.xpreach + p] * dt:
                 return True
     return False
+
+
+@njit(cache=True, inline="always")
+def _world_cap(top: float, margin: float, dt: FloatArray, n: int) -> float:
+    """The cap of a pass's world values: where every sphere's reach times the largest
+    neighbour distance ``dt`` is below CLEARANCE_CAP - margin, the least cap above
+    margin + that bound. A valid sample's value is >= margin, so a neighbour's value capped
+    there passes the two-sample bound (:func:`_bound_fails`) whenever the uncapped one
+    does, as it does at CLEARANCE_CAP: the answers are the reference's. A smaller cap lets
+    more primitives, and more of a cloud's lattice, go unread (their values would be the
+    cap)."""
+    far = 0.0
+    for k in range(n - 1):
+        far = max(far, dt[k])
+    return min(CLEARANCE_CAP, margin + top * far + CAP_SLACK)
 
 
 @njit(cache=True)
@@ -571,6 +608,7 @@ def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off
     clear = np.empty(o.L, np.bool_)
     S = _scratch(K)
     t, dt, low, idx = np.empty(K), np.zeros(K), np.empty(K), np.empty(K, np.int64)
+    one, prims = np.empty(K), np.empty(max(o.M, 1), np.bool_)
     n = (K - 1) // c + 1
     for k in range(n):
         idx[k] = c * k
@@ -581,7 +619,8 @@ def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off
             near = refine == 0 or idx[k + 1] == idx[k] + 1
             dt[k] = t[k + 1] - t[k] if near else 0.0
         if not _dense_values(I, F, field, X, o, q0, q1, margin, t, dt, qv, sn, cs, W, C, LC,
-                             V, G, bad, need, passes, clear, S, low, n):  # fmt: skip
+                             V, G, bad, need, passes, clear, S, low, one, prims,
+                             _world_cap(top, margin, dt, n), n):  # fmt: skip
             return -1
         if refine or c == 1:
             for k in range(n - 1):
@@ -655,6 +694,7 @@ def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
     S = _scratch(K)
     rows = np.empty(K, np.int64)
     alive = np.empty(Q.shape[0], np.int64)
+    every = np.ones(max(o.M, 1), np.bool_)  # every primitive's values
     m = 0
     for b0 in range(0, Q.shape[0], K):
         n = min(K, Q.shape[0] - b0)
@@ -664,7 +704,8 @@ def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
         _angles(I, o, qv, sn, cs, js, n)
         _place_joints(I, F, o, qv, sn, cs, W, js, n)
         _place_spheres(I, F, o, W, C, LC, js, n)
-        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, S, 0, split, n)
+        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, every, S, 0, split,
+                      n)  # fmt: skip
         for k in range(n):
             out[b0 + k] = False
             if not bad[k]:
@@ -678,7 +719,8 @@ def configs_valid(I, F, field, Q, margin, out):  # type: ignore[no-untyped-def]
         _angles(I, o, qv, sn, cs, o.J, n)
         _place_joints(I, F, o, qv, sn, cs, W, o.J, n)
         _place_spheres(I, F, o, W, C, LC, o.J, n)
-        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, S, split, o.L, n)
+        _world_values(I, F, field, o, C, LC, margin, margin, V, bad, near, every, S, split,
+                      o.L, n)  # fmt: skip
         _self_hits(I, F, o, C, LC, bad, open_, near, n)
         for k in range(n):
             out[rows[k]] = not bad[k]

@@ -19,7 +19,7 @@ from planning.collision import (
     SphereCollisionChecker,
     coarse_first,
 )
-from planning.compiled import validity
+from planning.compiled import lanes, validity
 from planning.compiled.checker import CompiledChecker
 from planning.compiled.layout import BLOCK
 from planning.compiled.tables import block_minima
@@ -333,6 +333,32 @@ def test_the_dense_certificate_proves_what_it_claims(
     )
     passed = prefix == DENSE_SAMPLES - 1
     assert fine.edges_valid_sampled(starts[passed], ends[passed]).all()
+
+
+def test_a_pass_capped_lower_decides_every_bound_as_the_reference_cap() -> None:
+    # The dense certificate's passes cap the world values at lanes._world_cap, the
+    # reference at CLEARANCE_CAP: for two valid neighbours (values >= margin) of any sphere
+    # whose reach is at most the pass's top, at most the pass's largest dt apart, the
+    # two-sample bound must come out the same. Drawn at its edges: a value at the margin,
+    # the fastest sphere, the widest interval.
+    rng = np.random.default_rng(12)
+    for _ in range(3000):
+        margin = float(rng.choice([0.0, 0.005, rng.uniform(0, 0.02)]))
+        top = float(rng.choice([0.0, rng.uniform(0, 0.5), rng.uniform(0, 3.0)]))
+        n = int(rng.integers(1, 65))
+        dt = np.zeros(64)
+        dt[: n - 1] = rng.uniform(0, 1 / 9, n - 1) * (rng.random(n - 1) < 0.8)
+        cap = lanes._world_cap(top, margin, dt, n)
+        assert margin < cap <= CLEARANCE_CAP
+        far = dt[: n - 1].max(initial=0.0)
+        reach = np.array([top, rng.uniform(0, top)])[:, None]
+        gap = np.array([far, rng.uniform(0, far)])[None, :, None]
+        a = np.array([margin, rng.uniform(margin, 0.15)])[None, None, :, None]
+        b = np.array([margin, rng.uniform(margin, 0.15), 0.15])[None, None, None, :]
+        need = 2.0 * margin + reach[..., None, None] * gap[..., None]
+        ours = np.minimum(a, cap) + np.minimum(b, cap) >= need
+        theirs = np.minimum(a, CLEARANCE_CAP) + np.minimum(b, CLEARANCE_CAP) >= need
+        np.testing.assert_array_equal(ours, theirs)
 
 
 def test_the_dense_certificate_near_self_contact_finds_what_the_reference_finds(
