@@ -526,7 +526,13 @@ def _dense_values(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Of
             clear[lk] = True
             continue
         _link_world_values(I, F, field, o, lk, C, LC, cap, margin, V, bad, need, prims, S, n)
-    for k in range(n):  # a sample in collision (or outside the limits) refuses the edge
+        # a sample in collision (or outside the limits) refuses the edge: no more links
+        hit = False
+        for k in range(n):
+            hit |= bad[k]
+        if hit:
+            return False
+    for k in range(n):
         if bad[k]:
             return False
     _self_values(I, F, o, X, C, LC, CLEARANCE_CAP, dt, G, passes, bad, low, n)
