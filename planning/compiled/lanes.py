@@ -511,6 +511,9 @@ def _dense_values(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Of
         for k in range(n):
             v[k] = a + t[k] * d
             bad[k] |= not ((lo <= v[k]) & (v[k] <= hi))
+    for k in range(n):  # a sample outside the limits refuses the edge
+        if bad[k]:
+            return False
     _angles(I, o, qv, sn, cs, o.J, n)
     _place_joints(I, F, o, qv, sn, cs, W, o.J, n)
     _place_spheres(I, F, o, W, C, LC, o.J, n)
@@ -526,14 +529,11 @@ def _dense_values(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Of
             clear[lk] = True
             continue
         _link_world_values(I, F, field, o, lk, C, LC, cap, margin, V, bad, need, prims, S, n)
-        # a sample in collision (or outside the limits) refuses the edge: no more links
+        # a sample in collision refuses the edge: no more links
         hit = False
         for k in range(n):
             hit |= bad[k]
         if hit:
-            return False
-    for k in range(n):
-        if bad[k]:
             return False
     _self_values(I, F, o, X, C, LC, CLEARANCE_CAP, dt, G, passes, bad, low, n)
     for k in range(n):
