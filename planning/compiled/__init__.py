@@ -31,16 +31,20 @@ __all__ = [
 _STAMP = "kernels.sha256"
 
 
-def drop_stale_kernels(package: Path) -> bool:
+def drop_stale_kernels(package: Path, constants: tuple[Path, ...] = ()) -> bool:
     """Delete numba's cached kernels in ``package/__pycache__`` unless they were compiled
-    from the package's present sources; returns True when it deleted them.
+    from the package's present sources and the modules in ``constants``; returns True when
+    it deleted them.
 
     Numba keys a cached kernel by its own file's timestamp only. A kernel of validity.py
     that inlines a function of geometry.py would load its old machine code after an edit
-    of geometry.py alone: stale answers, met while measuring a change here. The stamp
-    covers every source file of the package, so any edit recompiles every kernel."""
+    of geometry.py alone: stale answers, met while measuring a change here. Numba also
+    freezes the value of a global it reads into the machine code, so the kernels that read
+    planning.collision's constants (the clearance cap, the dense certificate's sizes) would
+    keep the old values after an edit there. The stamp covers every source file of the
+    package and the modules in ``constants``, so any edit recompiles every kernel."""
     digest = hashlib.sha256()
-    for source in sorted(package.glob("*.py")):
+    for source in [*sorted(package.glob("*.py")), *constants]:
         digest.update(source.name.encode() + b"\0" + source.read_bytes())
     cache = package / "__pycache__"
     stamp = cache / _STAMP
@@ -59,4 +63,5 @@ def drop_stale_kernels(package: Path) -> bool:
     return True
 
 
-drop_stale_kernels(Path(__file__).parent)
+# planning.collision: the constants the kernels share with the reference checker
+drop_stale_kernels(Path(__file__).parent, (Path(__file__).parent.parent / "collision.py",))

@@ -615,9 +615,13 @@ def test_cached_kernels_are_dropped_when_any_source_of_the_package_changes(
 ) -> None:
     from planning.compiled import drop_stale_kernels
 
-    (tmp_path / "geometry.py").write_text("A = 1\n")
-    (tmp_path / "validity.py").write_text("B = 2\n")
-    cache = tmp_path / "__pycache__"
+    package = tmp_path / "compiled"
+    package.mkdir()
+    constants = tmp_path / "collision.py"  # outside the package: constants the kernels read
+    constants.write_text("CAP = 0.1\n")
+    (package / "geometry.py").write_text("A = 1\n")
+    (package / "validity.py").write_text("B = 2\n")
+    cache = package / "__pycache__"
     cache.mkdir()
     kernel = [
         cache / "validity.config_ok-80.py311.nbi",
@@ -627,14 +631,20 @@ def test_cached_kernels_are_dropped_when_any_source_of_the_package_changes(
     bytecode.write_text("not numba's")
     for f in kernel:
         f.write_text("old machine code")
-    assert drop_stale_kernels(tmp_path)  # no stamp yet: compiled from unknown sources
+    assert drop_stale_kernels(package, (constants,))  # no stamp yet: unknown sources
     assert not any(f.exists() for f in kernel)
     for f in kernel:
         f.write_text("new machine code")
-    assert not drop_stale_kernels(tmp_path)  # same sources: the cache stays
+    assert not drop_stale_kernels(package, (constants,))  # same sources: the cache stays
     assert all(f.exists() for f in kernel)
-    (tmp_path / "geometry.py").write_text("A = 3\n")  # not the kernel's own module
-    assert drop_stale_kernels(tmp_path)
+    (package / "geometry.py").write_text("A = 3\n")  # not the kernel's own module
+    assert drop_stale_kernels(package, (constants,))
+    assert not any(f.exists() for f in kernel)
+    for f in kernel:
+        f.write_text("new machine code")
+    assert not drop_stale_kernels(package, (constants,))
+    constants.write_text("CAP = 0.2\n")  # a constant the kernels compiled in
+    assert drop_stale_kernels(package, (constants,))
     assert not any(f.exists() for f in kernel)
     assert bytecode.exists()
 
