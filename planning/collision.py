@@ -39,7 +39,9 @@ taken, all valid, each fine interval satisfying the bound). This holds for most 
 clear of the obstacles, where the walk's jumps stay short because every clearance above
 :data:`CLEARANCE_CAP` counts as the cap. A sample that is invalid refuses the edge (no
 certificate can pass a point below the margin); otherwise, where the bound fails between
-fine samples k and k + 1, the walk certifies the rest of the edge from sample k.
+fine samples k and k + 1, the walk certifies that interval, from sample k to sample k + 1
+(a run of such intervals in one walk). The others are certified by the dense samples: an
+edge that leaves a start close to an obstacle is walked only near that start.
 
 :class:`~planning.compiled.checker.CompiledChecker` runs the same algorithms in compiled code
 and is the default everywhere; this class is the reference the tests compare it with.
@@ -508,35 +510,51 @@ class SphereCollisionChecker:
         """Does the edge q0 -> q1, of n resolution steps, pass conservative advancement
         (module docstring)? One sample at a time, every sphere and pair exact."""
         reach = (np.abs(q1 - q0) * self._displacement).sum(axis=1)  # (S,) m over the edge
-        ws = self.world_spheres[reach[self.world_spheres] > 0]
         pair_reach = (np.abs(q1 - q0) * self._pair_displacement).sum(axis=1)  # (P,) m
+        if n < DENSE_MIN_STEPS:
+            return self._walk(q0, q1, n, reach, pair_reach, 0.0, 1.0)
+        fails = self._dense_fails(q0, q1, reach, pair_reach)
+        if fails is None:
+            return False
+        # the dense samples certify every other interval; a run of neighbouring ones is
+        # walked whole, so that the walk's jumps can cross their ends
+        runs: list[list[int]] = []
+        for k in fails:
+            if runs and runs[-1][1] == k:
+                runs[-1][1] = k + 1
+            else:
+                runs.append([k, k + 1])
+        last = DENSE_SAMPLES - 1
+        return all(self._walk(q0, q1, n, reach, pair_reach, a / last, b / last) for a, b in runs)
+
+    def _walk(
+        self, q0: Array, q1: Array, n: int, reach: Array, pair_reach: Array, t: float,
+        end: float,
+    ) -> bool:  # fmt: skip
+        """Conservative advancement over the fractions [t, end] of the edge q0 -> q1, of n
+        resolution steps (module docstring), from a sample at t."""
+        ws = self.world_spheres[reach[self.world_spheres] > 0]
         moving = pair_reach > 0
-        t = 0.0
-        if n >= DENSE_MIN_STEPS:
-            k = self._dense_prefix(q0, q1, reach, pair_reach)
-            if k < 0 or k == DENSE_SAMPLES - 1:
-                return k >= 0
-            t = k / (DENSE_SAMPLES - 1)  # certified up to here: the walk goes on from it
         step = 1.0 / n
         smallest = step / MIN_STEP_DIVISOR
         values = self._sample_values(q0, q1, t)
         if values is None:
             return False
-        while t < 1.0:
+        while t < end:
             v, g = values
             f = min(
                 np.min((v[ws] - self.margin) / reach[ws], initial=np.inf),
                 np.min(g[moving] / pair_reach[moving], initial=np.inf),
             )
             if f >= step:  # a jump: nothing can lose its margin before t + f
-                t_next = min(t + f, 1.0)
+                t_next = min(t + f, end)
                 values = self._sample_values(q0, q1, t_next)
                 if values is None:
                     return False
             else:  # a step the two-sample bound must certify, else the jump f
                 if 2.0 * f < smallest:
                     return False
-                t_next = min(t + min(step, 2.0 * f), 1.0)
+                t_next = min(t + min(step, 2.0 * f), end)
                 values = self._sample_values(q0, q1, t_next)
                 if values is None:
                     return False
@@ -548,34 +566,36 @@ class SphereCollisionChecker:
                 ):
                     if f < smallest:
                         return False
-                    t_next = min(t + f, 1.0)
+                    t_next = min(t + f, end)
                     values = self._sample_values(q0, q1, t_next)
                     if values is None:
                         return False
             t = t_next
         return True
 
-    def _dense_prefix(self, q0: Array, q1: Array, reach: Array, pair_reach: Array) -> int:
+    def _dense_fails(
+        self, q0: Array, q1: Array, reach: Array, pair_reach: Array
+    ) -> list[int] | None:
         """The dense certificate of the edge q0 -> q1 (module docstring), each pass's samples
-        as one batch: -1 if one of them is invalid, else the first fine k whose samples k and
-        k + 1 fail the two-sample bound (DENSE_SAMPLES - 1 if none). ``reach`` (S,) and
-        ``pair_reach`` (P,) are the edge's (m)."""
+        as one batch: None if one of them is invalid, else the fine k (ascending) whose
+        samples k and k + 1 fail the two-sample bound (none: the edge is certified).
+        ``reach`` (S,) and ``pair_reach`` (P,) are the edge's (m)."""
         K = DENSE_SAMPLES
         c = DENSE_STRIDE if coarse_first(float(reach.max()), self.margin) else 1
         coarse = np.arange(0, K, c)
         holds = self._dense_bounds(q0, q1, coarse, reach, pair_reach)
         if holds is None:
-            return -1
+            return None
         if c == 1 or holds.all():  # one pass, or every coarse interval certified whole
-            return K - 1 if holds.all() else int(np.argmin(holds))
+            return [int(c * k) for k in np.flatnonzero(~holds)]
         fine = np.unique(
             np.concatenate([np.arange(c * i, c * i + c + 1) for i in np.flatnonzero(~holds)])
         )
         holds = self._dense_bounds(q0, q1, fine, reach, pair_reach)
         if holds is None:
-            return -1
+            return None
         fails = ~holds & (np.diff(fine) == 1)  # between neighbours only
-        return int(fine[np.argmax(fails)]) if fails.any() else K - 1
+        return [int(k) for k in fine[:-1][fails]]
 
     def _dense_bounds(
         self, q0: Array, q1: Array, idx: npt.NDArray[np.int64], reach: Array, pair_reach: Array

@@ -17,7 +17,7 @@ arithmetic and look-ups that vectorize. Measured on the UR5, 10,000 uniform conf
 scalar loop and the lanes run back to back): 1.2 -> 2.7-2.9M configurations/s against 20
 primitives, 2.2 -> 4.0-4.6M against a 50,000-point cloud, 2.0 -> 9.0M in the empty world.
 
-:func:`dense_prefix` puts the same steps to a second use: a long edge's evenly spaced
+:func:`dense_fails` puts the same steps to a second use: a long edge's evenly spaced
 samples, one per lane (where it pays, every DENSE_STRIDE-th first, then those of the
 intervals that need them), with their capped clearances and self-pair gaps, for the dense
 certificate of :mod:`planning.collision` (the walk takes its samples one after the other,
@@ -581,12 +581,12 @@ def _world_cap(top: float, margin: float, dt: FloatArray, n: int) -> float:
 
 
 @njit(cache=True)
-def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
-                 q0: FloatArray, q1: FloatArray, margin: float) -> int:  # fmt: skip
+def dense_fails(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
+                q0: FloatArray, q1: FloatArray, margin: float, fails: IntArray) -> int:  # fmt: skip
     """The dense certificate of the edge q0 -> q1 (:mod:`planning.collision`): -1 if one of
-    its samples is invalid, else the first fine k whose samples k and k + 1 fail the
-    two-sample bound (DENSE_SAMPLES - 1 if none: the edge is certified). The reach of every
-    sphere and pair over the edge is in ``X`` (by
+    its samples is invalid, else the number m of fine intervals whose samples k and k + 1
+    fail the two-sample bound, their k ascending in ``fails[:m]`` (none: the edge is
+    certified). The reach of every sphere and pair over the edge is in ``X`` (by
     :func:`~planning.compiled.validity.edge_steps`).
 
     One pass of all the samples, one per lane, or (:func:`~planning.collision.coarse_first`)
@@ -629,10 +629,12 @@ def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off
                              _world_cap(top, margin, dt, n), n):  # fmt: skip
             return -1
         if refine or c == 1:
+            m = 0
             for k in range(n - 1):
                 if dt[k] > 0.0 and _bound_fails(I, X, o, margin, V, G, clear, passes, dt[k], k):
-                    return int(idx[k])
-            return K - 1
+                    fails[m] = idx[k]
+                    m += 1
+            return m
         # the coarse intervals that fail the bound: their samples, in runs
         m, last = 0, -1
         for k in range(n - 1):
@@ -643,9 +645,9 @@ def dense_prefix(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off
                 m += 1
             last = c * (k + 1)
         if m == 0:
-            return K - 1
+            return 0
         n = m
-    return K - 1
+    return 0
 
 
 @njit(cache=True, inline="always")

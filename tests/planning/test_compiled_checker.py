@@ -263,7 +263,7 @@ def test_the_dense_certificate_proves_what_it_claims(
     worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
 ) -> None:
     # Long edges from near the obstacles: some certified by the dense certificate alone,
-    # some refused by one of its samples, some walked on from where its bound fails. The
+    # some refused by one of its samples, some walked where its bound fails. The
     # compiled certificate finds the same, the compiled checker answers as the reference,
     # and every edge the certificate passes keeps the margin at a tenth of the resolution.
     world = worlds["primitives"]
@@ -285,15 +285,10 @@ def test_the_dense_certificate_proves_what_it_claims(
     ends = np.concatenate([ends, after[ends_valid]])
     steps = ref.edge_steps(starts, ends)
     long = steps >= DENSE_MIN_STEPS
-    prefix = np.array(
-        [
-            ref._dense_prefix(a, b, *_reaches(ref, a, b)) if n >= DENSE_MIN_STEPS else -2
-            for a, b, n in zip(starts, ends, steps, strict=True)
-        ]
-    )
-    assert (prefix == DENSE_SAMPLES - 1).sum() >= 10, "edges the certificate passes"
-    assert (prefix == -1).sum() >= 10, "edges one of its samples refuses"
-    assert ((prefix >= 0) & (prefix < DENSE_SAMPLES - 1)).sum() >= 4, "edges walked on"
+    expected, found = _dense_answers(ref, fast, starts[long], ends[long])
+    assert expected.count(()) >= 10, "edges the certificate passes"
+    assert expected.count(None) >= 10, "edges one of its samples refuses"
+    assert sum(bool(e) for e in expected) >= 4, "edges walked where its bound fails"
     assert (~long).sum() >= 10, "short edges, walked from the start"
     # both kinds of dense certificate (coarse_first): one pass of all the samples, and coarse
     # samples first with some coarse intervals certified whole and some refined
@@ -315,24 +310,20 @@ def test_the_dense_certificate_proves_what_it_claims(
     assert sum(mixed) >= 10, "coarse intervals certified whole beside refined ones"
     # the compiled certificate leaves out the links and pair groups whose bounding balls
     # already pass (lanes._link_clear, lanes._self_values) and must find the same
-    I, F, field = fast.kernel_tables().args()  # noqa: E741 (layout names)
-    found = [
-        validity.dense_certificate(I, F, field, a, b, ref.margin, ref.resolution) if n else -2
-        for a, b, n in zip(starts, ends, long, strict=True)
-    ]
-    np.testing.assert_array_equal(found, prefix)
-    expected = ref.edges_valid(starts, ends)
-    np.testing.assert_array_equal(fast.edges_valid(starts, ends), expected)
-    assert not expected[prefix == -1].any()
-    assert expected[prefix == DENSE_SAMPLES - 1].all()
+    assert found == expected
+    valid = ref.edges_valid(starts, ends)
+    np.testing.assert_array_equal(fast.edges_valid(starts, ends), valid)
+    refused = np.array([e is None for e in expected])
+    passed = np.array([e == () for e in expected])
+    assert not valid[long][refused].any()
+    assert valid[long][passed].all()
     fine = SphereCollisionChecker(
         robot,
         spheres,
         world,
         resolution=robot.config.edge_resolution / 10,  # type: ignore[arg-type]
     )
-    passed = prefix == DENSE_SAMPLES - 1
-    assert fine.edges_valid_sampled(starts[passed], ends[passed]).all()
+    assert fine.edges_valid_sampled(starts[long][passed], ends[long][passed]).all()
 
 
 def test_a_pass_capped_lower_decides_every_bound_as_the_reference_cap() -> None:
@@ -396,11 +387,12 @@ def test_the_dense_certificate_near_self_contact_finds_what_the_reference_finds(
     after = np.clip(mid + way, robot.lower, robot.upper)
     keep = ref.config_valid(before) & ref.config_valid(after)
     before, after = before[keep], after[keep]
-    expected, found = _first_failing_intervals(ref, fast, before, after)
-    assert (expected == DENSE_SAMPLES - 1).sum() >= 10, "edges the certificate passes"
-    assert ((expected >= 0) & (expected < DENSE_SAMPLES - 1)).sum() >= 10, "edges walked on"
-    assert (expected == -1).sum() >= 10, "edges one of its samples refuses"
-    np.testing.assert_array_equal(found, expected)
+    expected, found = _dense_answers(ref, fast, before, after)
+    assert expected.count(()) >= 10, "edges the certificate passes"
+    assert sum(bool(e) for e in expected) >= 10, "edges walked where its bound fails"
+    assert sum(e is not None and len(e) > 1 for e in expected) >= 10, "in several intervals"
+    assert expected.count(None) >= 10, "edges one of its samples refuses"
+    assert found == expected
     valid = ref.edges_valid(before, after)
     assert 10 <= valid.sum() <= len(valid) - 10, "edges certified and edges refused"
     np.testing.assert_array_equal(fast.edges_valid(before, after), valid)
@@ -453,24 +445,24 @@ def test_pair_groups_whose_balls_are_apart_but_fail_the_bound_are_not_left_out(
         edge[kind] = (apart & ~bound).any(axis=1)
     assert (edge & ~coarse).sum() >= 150, "one-pass edges where a group is apart but fails"
     assert (edge & coarse).sum() >= 150, "coarse-first edges where a group is apart but fails"
-    expected, found = _first_failing_intervals(ref, fast, starts[edge], ends[edge])
-    np.testing.assert_array_equal(found, expected)
+    expected, found = _dense_answers(ref, fast, starts[edge], ends[edge])
+    assert found == expected
 
 
-def _first_failing_intervals(
+def _dense_answers(
     ref: SphereCollisionChecker, fast: CompiledChecker, starts: np.ndarray, ends: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The dense certificate's answer (the first failing interval, -1, or DENSE_SAMPLES - 1)
-    for each edge, by the reference and by the compiled kernel."""
+) -> tuple[list[tuple[int, ...] | None], list[tuple[int, ...] | None]]:
+    """The dense certificate's answer for each edge, by the reference and by the compiled
+    kernel: None where one of its samples refuses the edge, else the first samples of the
+    intervals whose bound fails (none: certified)."""
     I, F, field = fast.kernel_tables().args()  # noqa: E741 (layout names)
-    pairs = list(zip(starts, ends, strict=True))
-    expected = np.array([ref._dense_prefix(a, b, *_reaches(ref, a, b)) for a, b in pairs])
-    found = np.array(
-        [
-            validity.dense_certificate(I, F, field, a, b, ref.margin, ref.resolution)
-            for a, b in pairs
-        ]
-    )
+    expected, found = [], []
+    fails = np.empty(DENSE_SAMPLES, np.int64)
+    for a, b in zip(starts, ends, strict=True):
+        ks = ref._dense_fails(a, b, *_reaches(ref, a, b))
+        expected.append(None if ks is None else tuple(ks))
+        m = validity.dense_certificate(I, F, field, a, b, ref.margin, ref.resolution, fails)
+        found.append(None if m < 0 else tuple(int(k) for k in fails[:m]))
     return expected, found
 
 
