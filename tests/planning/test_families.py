@@ -99,3 +99,20 @@ def test_scene_clouds_lie_on_the_obstacles(robot: RobotModel, spheres: SphereMod
     view = camera_view(p.world, rng, n=3000, noise=0.0)
     assert 500 < len(view) <= 3000
     assert np.abs(p.world.distance(view)).max() < 2e-3  # float32 rays
+
+
+def test_a_scene_without_an_anchor_still_gives_ends_that_join(
+    robot: RobotModel, spheres: SphereModel
+) -> None:
+    # No named configuration is valid in this scene, so no end can be checked against one;
+    # its goal must reach its start instead. Before, this problem's ends lay in parts of the
+    # free space that do not join, and rrtc failed it in three runs of 40 s.
+    from planning.families import _anchor
+    from planning.rrtc import CompiledRRTConnect, RRTCCfg
+
+    p = generate_problem("tabletop", 2000166, robot, spheres, category="tight2free")
+    checker = make_checker(robot, spheres, p.world)
+    assert _anchor(robot, checker) is None
+    planner = CompiledRRTConnect(RRTCCfg(max_iterations=20_000, simplify=False))
+    found = planner.search(checker, p.start, p.goal, np.random.default_rng(1))
+    assert found.success, found.detail
