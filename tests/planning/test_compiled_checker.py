@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -447,6 +448,11 @@ def test_pair_groups_whose_balls_are_apart_but_fail_the_bound_are_not_left_out(
     assert (edge & coarse).sum() >= 150, "coarse-first edges where a group is apart but fails"
     expected, found = _dense_answers(ref, fast, starts[edge], ends[edge])
     assert found == expected
+    # where the bound fails in runs apart, each run is walked on its own: as the reference
+    apart = np.array([_runs(e) > 1 for e in expected])
+    assert apart.sum() >= 2, "edges whose failing intervals lie in two runs or more"
+    a, b = starts[edge][apart], ends[edge][apart]
+    np.testing.assert_array_equal(fast.edges_valid(a, b), ref.edges_valid(a, b))
 
 
 def _dense_answers(
@@ -464,6 +470,13 @@ def _dense_answers(
         m = validity.dense_certificate(I, F, field, a, b, ref.margin, ref.resolution, fails)
         found.append(None if m < 0 else tuple(int(k) for k in fails[:m]))
     return expected, found
+
+
+def _runs(fails: tuple[int, ...] | None) -> int:
+    """How many runs of neighbouring intervals ``fails`` holds (each is one walk)."""
+    if not fails:
+        return 0
+    return 1 + sum(b > a + 1 for a, b in itertools.pairwise(fails))
 
 
 def _reaches(
