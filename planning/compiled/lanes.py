@@ -500,11 +500,12 @@ def _dense_values(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Of
                   passes: BoolArray, clear: BoolArray, S: Scratch, low: FloatArray,
                   one: FloatArray, prims: BoolArray, cap: float, n: int) -> bool:  # fmt: skip
     """The clearances ``V`` (capped at ``cap``) and gaps ``G`` (at CLEARANCE_CAP) of the
-    edge's samples at fractions ``t[:n]``; False as soon as one sample is found invalid. The values of a link's spheres
-    are left out where the link's bounding ball passes among primitives (``clear``,
-    :func:`_link_clear`), and the gaps of a pair group where its two links' balls pass
-    (``passes``, :func:`_self_values`), between the neighbours ``dt`` names (lanes k and
-    k + 1 are ``dt[k]`` of the edge apart, 0 where they are not neighbouring samples)."""
+    edge's samples at fractions ``t[:n]``; False as soon as one sample is found invalid.
+    The values of a link's spheres are left out where the link's bounding ball passes among
+    primitives (``clear``, :func:`_link_clear`), and the gaps of a pair group where its two
+    links' balls pass (``passes``, :func:`_self_values`), between the neighbours ``dt``
+    names (lanes k and k + 1 are ``dt[k]`` of the edge apart, 0 where they are not
+    neighbouring samples)."""
     bad[:n] = False
     for j in range(o.dof):
         lo, hi, v, a, d = F[o.lower + j], F[o.upper + j], qv[j], q0[j], q1[j] - q0[j]
