@@ -314,3 +314,81 @@ def _reach_apart(X: FloatArray, F: FloatArray, o: Off, i: int, lk: int) -> bool:
     dx, dy, dz = X[a] - X[b], X[a + 1] - X[b + 1], X[a + 2] - X[b + 2]
     reach = F[o.radii + i] + F[o.lradius + lk]
     return dx * dx + dy * dy + dz * dz >= reach * reach
+
+
+# -- the walk's local motion bound (planning.collision: tau A_s + tau^2 B_s) -----------------
+
+
+@njit(cache=True, inline="always")
+def edge_slack(
+    I: IntArray, F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray
+) -> None:
+    """``X[o.xslack + s]`` = B_s of the edge q0 -> q1 (m): over a fraction tau of the edge, a
+    sphere's distance from the axis of a revolute joint carrying it grows at most at the rate
+    of the bounds of the joints between that joint and the sphere; B_s is half the sum of
+    that rate times the joint's motion over the revolute joints."""
+    for s in range(o.S):
+        tail = 0.0
+        acc = 0.0
+        for j in range(o.J - 1, 0, -1):  # from the sphere's end of the chain
+            col = I[o.idxq + j]
+            w = F[o.disp + s * o.dof + col] if col >= 0 else 0.0
+            if w == 0.0:
+                continue
+            d = abs(q1[col] - q0[col])
+            if I[o.jtype + j] == JOINT_REVOLUTE:
+                acc += d * tail
+            tail += d * w
+        X[o.xslack + s] = 0.5 * acc
+
+
+@njit(cache=True, inline="always")
+def axis_distance(
+    F: FloatArray,
+    a: int,
+    R: tuple,
+    t: tuple,
+    c: tuple,  # type: ignore[type-arg]
+) -> float:
+    """Distance of the point ``c`` from the axis ``F[a:a + 3]`` (joint frame) of a joint at
+    world rotation ``R`` (9, row-major) and translation ``t``."""
+    x, y, z = F[a], F[a + 1], F[a + 2]
+    ax = R[0] * x + R[1] * y + R[2] * z
+    ay = R[3] * x + R[4] * y + R[5] * z
+    az = R[6] * x + R[7] * y + R[8] * z
+    dx, dy, dz = c[0] - t[0], c[1] - t[1], c[2] - t[2]
+    p = dx * ax + dy * ay + dz * az
+    ex, ey, ez = dx - p * ax, dy - p * ay, dz - p * az
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+@njit(cache=True, inline="always")
+def lever_sum(
+    I: IntArray, F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray, s: int
+) -> float:
+    """A_s (m): the sum over the joints carrying sphere s of the joint's motion over the edge
+    q0 -> q1 times the sphere centre's distance from its axis at the configuration placed in
+    ``X`` (revolute), or times its bound (prismatic)."""
+    c = o.xc + 3 * s
+    centre = (X[c], X[c + 1], X[c + 2])
+    acc = 0.0
+    for j in range(1, o.J):
+        col = I[o.idxq + j]
+        w = F[o.disp + s * o.dof + col] if col >= 0 else 0.0
+        if w == 0.0:
+            continue
+        d = abs(q1[col] - q0[col])
+        if I[o.jtype + j] != JOINT_REVOLUTE:
+            acc += d * w
+            continue
+        R, t = o.xR + 9 * j, o.xt + 3 * j
+        rot = (X[R], X[R + 1], X[R + 2], X[R + 3], X[R + 4], X[R + 5], X[R + 6], X[R + 7], X[R + 8])
+        acc += d * axis_distance(F, o.axis + 3 * j, rot, (X[t], X[t + 1], X[t + 2]), centre)
+    return acc
+
+
+@njit(cache=True, inline="always")
+def local_fraction(lever: float, slack: float, room: float) -> float:
+    """The largest tau with tau lever + tau^2 slack <= room (>= 0)."""
+    den = lever + math.sqrt(lever * lever + 4.0 * slack * room)
+    return 2.0 * room / den if den > 0.0 else np.inf

@@ -42,7 +42,7 @@ from numba import njit
 
 from gaide_core.types import BoolArray, FloatArray, IntArray
 from planning.collision import CLEARANCE_CAP, DENSE_SAMPLES, DENSE_STRIDE, coarse_first
-from planning.compiled.geometry import is_cloud_lattice
+from planning.compiled.geometry import axis_distance, is_cloud_lattice
 from planning.compiled.layout import (
     BLOCK,
     JOINT_PRISMATIC,
@@ -544,18 +544,49 @@ def _dense_values(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Of
 
 
 @njit(cache=True, inline="always")
-def _bound_fails(I: IntArray, X: FloatArray, o: Off, margin: float, V: FloatArray,
-                 G: FloatArray, clear: BoolArray, passes: BoolArray, dt: float,
+def _lane_lever_sum(I: IntArray, F: FloatArray, o: Off, W: FloatArray, C: FloatArray,
+                    q0: FloatArray, q1: FloatArray, s: int, k: int) -> float:  # fmt: skip
+    """A_s of :func:`~planning.compiled.geometry.lever_sum` at the configuration of lane k."""
+    centre = (C[s, 0, k], C[s, 1, k], C[s, 2, k])
+    acc = 0.0
+    for j in range(1, o.J):
+        col = I[o.idxq + j]
+        w = F[o.disp + s * o.dof + col] if col >= 0 else 0.0
+        if w == 0.0:
+            continue
+        d = abs(q1[col] - q0[col])
+        if I[o.jtype + j] != JOINT_REVOLUTE:
+            acc += d * w
+            continue
+        rot = (W[j, 0, k], W[j, 1, k], W[j, 2, k], W[j, 3, k], W[j, 4, k], W[j, 5, k],
+               W[j, 6, k], W[j, 7, k], W[j, 8, k])  # fmt: skip
+        t = (W[j, 9, k], W[j, 10, k], W[j, 11, k])
+        acc += d * axis_distance(F, o.axis + 3 * j, rot, t, centre)
+    return acc
+
+
+@njit(cache=True, inline="always")
+def _bound_fails(I: IntArray, F: FloatArray, X: FloatArray, o: Off, margin: float,
+                 V: FloatArray, G: FloatArray, W: FloatArray, C: FloatArray, q0: FloatArray,
+                 q1: FloatArray, clear: BoolArray, passes: BoolArray, dt: float,
                  k: int) -> bool:  # fmt: skip
     """Do lanes k and k + 1 (neighbouring samples, ``dt`` of the edge apart) fail the
-    two-sample bound (the links and pair groups left out pass it)?"""
+    two-sample bound (the links and pair groups left out pass it)? A sphere's motion is
+    bounded by the smaller of its edge-wide reach and its local bound from lane k
+    (:mod:`planning.collision`), the latter computed only where the former fails."""
     for lk in range(o.L):
         if clear[lk]:
             continue
         for i in range(I[o.lstart + lk], I[o.lstart + lk + 1]):
             s = I[o.lsph + i]
-            bound = 2.0 * margin + X[o.xreach + s] * dt
-            if I[o.sworld + s] and V[s, k] + V[s, k + 1] < bound:
+            if not I[o.sworld + s]:
+                continue
+            both = V[s, k] + V[s, k + 1]
+            edge_wide = X[o.xreach + s] * dt
+            if both >= 2.0 * margin + edge_wide:
+                continue
+            lever = _lane_lever_sum(I, F, o, W, C, q0, q1, s, k)
+            if both < 2.0 * margin + min(edge_wide, dt * (lever + dt * X[o.xslack + s])):
                 return True
     for g in range(o.G):
         if passes[g]:
@@ -587,8 +618,8 @@ def dense_fails(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
     """The dense certificate of the edge q0 -> q1 (:mod:`planning.collision`): -1 if one of
     its samples is invalid, else the number m of fine intervals whose samples k and k + 1
     fail the two-sample bound, their k ascending in ``fails[:m]`` (none: the edge is
-    certified). The reach of every sphere and pair over the edge is in ``X`` (by
-    :func:`~planning.compiled.validity.edge_steps`).
+    certified). The reach of every sphere and pair over the edge, and every sphere's slack,
+    are in ``X`` (by :func:`~planning.compiled.validity.edge_steps`).
 
     One pass of all the samples, one per lane, or (:func:`~planning.collision.coarse_first`)
     two: every DENSE_STRIDE-th sample, then the samples of the coarse intervals that fail
@@ -632,14 +663,16 @@ def dense_fails(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
         if refine or c == 1:
             m = 0
             for k in range(n - 1):
-                if dt[k] > 0.0 and _bound_fails(I, X, o, margin, V, G, clear, passes, dt[k], k):
+                if dt[k] > 0.0 and _bound_fails(I, F, X, o, margin, V, G, W, C, q0, q1, clear,
+                                                passes, dt[k], k):  # fmt: skip
                     fails[m] = idx[k]
                     m += 1
             return m
         # the coarse intervals that fail the bound: their samples, in runs
         m, last = 0, -1
         for k in range(n - 1):
-            if not _bound_fails(I, X, o, margin, V, G, clear, passes, dt[k], k):
+            if not _bound_fails(I, F, X, o, margin, V, G, W, C, q0, q1, clear, passes,
+                                dt[k], k):  # fmt: skip
                 continue
             for f in range(c * k if last != c * k else c * k + 1, c * (k + 1) + 1):
                 idx[m] = f  # (this loop reads no index)

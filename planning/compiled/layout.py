@@ -101,8 +101,8 @@ Off = namedtuple(
         "lower", "upper", "cloud", "pR", "pt", "pdim", "pbound", "pdisp", "wradii", "lwradius",
         "place_K",
         # offsets into X (scratch), and its size
-        "xR", "xt", "xc", "xlc", "xwv", "xpv", "xreach", "xpreach", "xgreach", "xgcapped",
-        "xsc", "xq", "xsize",
+        "xR", "xt", "xc", "xlc", "xwv", "xpv", "xreach", "xlever", "xslack", "xpreach",
+        "xgreach", "xgcapped", "xsc", "xq", "xsize",
     ],
 )  # fmt: skip
 
@@ -143,9 +143,9 @@ def offsets(I: IntArray) -> Off:
     J, S, L, P, G, dof = I[d], I[d + 1], I[d + 2], I[d + 3], I[d + 4], I[d + 5]
     w = _io(I, I_WORLD)
     # scratch: joint rotations, translations, sphere and link centres, two samples' world
-    # values and pair gaps, per-sphere and per-pair reach, per-group reach, two samples'
-    # flags of the groups whose gaps are all capped, each joint's sine and cosine, one
-    # configuration
+    # values and pair gaps, per-sphere reach, lever sum and slack (validity._walk), per-pair
+    # reach, per-group reach, two samples' flags of the groups whose gaps are all capped, each
+    # joint's sine and cosine, one configuration
     xR = 0
     xt = xR + 9 * J
     xc = xt + 3 * J
@@ -153,7 +153,9 @@ def offsets(I: IntArray) -> Off:
     xwv = xlc + 3 * L
     xpv = xwv + 2 * S
     xreach = xpv + 2 * P
-    xpreach = xreach + S
+    xlever = xreach + S
+    xslack = xlever + S
+    xpreach = xslack + S
     xgreach = xpreach + P
     xgcapped = xgreach + G
     xsc = xgcapped + 2 * G
@@ -168,5 +170,6 @@ def offsets(I: IntArray) -> Off:
         _fo(I, F_UPPER), _fo(I, F_CLOUD), _fo(I, F_PR), _fo(I, F_PT), _fo(I, F_PDIM),
         _fo(I, F_PBOUND), _fo(I, F_PDISP), _fo(I, F_WRADII), _fo(I, F_LWRADIUS),
         _fo(I, F_PLACE_K),
-        xR, xt, xc, xlc, xwv, xpv, xreach, xpreach, xgreach, xgcapped, xsc, xq, xq + dof,
+        xR, xt, xc, xlc, xwv, xpv, xreach, xlever, xslack, xpreach, xgreach, xgcapped, xsc,
+        xq, xq + dof,
     )  # fmt: skip

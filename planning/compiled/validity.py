@@ -32,8 +32,11 @@ from gaide_core.types import FloatArray, IntArray
 from planning.collision import CLEARANCE_CAP, DENSE_MIN_STEPS, DENSE_SAMPLES, MIN_STEP_DIVISOR
 from planning.compiled.geometry import (
     _reach_apart,
+    edge_slack,
     group_gaps,
+    lever_sum,
     link_world_values,
+    local_fraction,
     place_all,
     place_joint,
     place_links_of_joint,
@@ -157,8 +160,10 @@ def edge_steps(
     """Sub-steps of the edge q0 -> q1 so that no sphere centre moves more than
     ``resolution`` (m) between samples. Over the whole edge, ``X[o.xreach + s]`` receives
     sphere s's bound (m) on its motion, ``X[o.xpreach + p]`` pair p's on the change of its
-    centre distance, ``X[o.xgreach + g]`` the largest of pair group g's."""
+    centre distance, ``X[o.xgreach + g]`` the largest of pair group g's, and
+    ``X[o.xslack + s]`` sphere s's slack (:func:`~planning.compiled.geometry.edge_slack`)."""
     top = _sphere_reach(F, X, o, q0, q1)
+    edge_slack(I, F, X, o, q0, q1)
     for g in range(o.G):
         group_top = 0.0
         for p in range(I[o.gstart + g], I[o.gstart + g + 1]):
@@ -179,15 +184,35 @@ def set_at(X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray, f: float) -> N
 
 
 @njit(cache=True, inline="always")
-def _safe_fraction(I: IntArray, X: FloatArray, o: Off, row: int, margin: float) -> float:
+def _levers(
+    I: IntArray, F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray
+) -> None:
+    """``X[o.xlever + s]`` = A_s (:func:`~planning.compiled.geometry.lever_sum`) of every
+    world-checked sphere."""
+    for s in range(o.S):
+        if I[o.sworld + s]:
+            X[o.xlever + s] = lever_sum(I, F, X, o, q0, q1, s)
+
+
+@njit(cache=True, inline="always")
+def _safe_fraction(
+    I: IntArray, F: FloatArray, X: FloatArray, o: Off, row: int, margin: float,
+    q0: FloatArray, q1: FloatArray,
+) -> float:  # fmt: skip
     """How far along the edge (fraction) no sphere can lose its margin nor a pair its gap,
-    from the sample whose values are in ``row``."""
+    from the sample whose values are in ``row`` and whose placement is in ``X``. A sphere's
+    local bound (:func:`~planning.compiled.geometry.lever_sum`) is computed only where its edge-wide bound would set the
+    minimum so far: the larger of its two fractions counts, so the minimum is the same."""
     f = np.inf
     wv, pv = o.xwv + row * o.S, o.xpv + row * o.P
     for s in range(o.S):
         r = X[o.xreach + s]
         if I[o.sworld + s] and r > 0.0:
-            f = min(f, (X[wv + s] - margin) / r)
+            room = X[wv + s] - margin
+            edge_wide = room / r
+            if edge_wide < f:
+                local = local_fraction(lever_sum(I, F, X, o, q0, q1, s), X[o.xslack + s], room)
+                f = min(f, max(edge_wide, local))
     for g in range(o.G):
         if X[o.xgcapped + row * o.G + g]:  # the group's pairs all at the cap: its top reach
             rr = X[o.xgreach + g]  # gives their minimum, exactly (rounding is monotonic)
@@ -204,10 +229,13 @@ def _safe_fraction(I: IntArray, X: FloatArray, o: Off, row: int, margin: float) 
 @njit(cache=True, inline="always")
 def _pair_bound_holds(I: IntArray, X: FloatArray, o: Off, margin: float, dt: float) -> bool:
     """The two-sample bound between the samples in rows 0 and 1 (either order), ``dt`` of
-    the edge apart."""
+    the edge apart, the spheres' lever sums (``X[o.xlever:]``) those of the earlier one."""
     for s in range(o.S):
-        bound = 2.0 * margin + X[o.xreach + s] * dt
-        if I[o.sworld + s] and X[o.xwv + s] + X[o.xwv + o.S + s] < bound:
+        if not I[o.sworld + s]:
+            continue
+        local = dt * (X[o.xlever + s] + dt * X[o.xslack + s])
+        bound = 2.0 * margin + min(X[o.xreach + s] * dt, local)
+        if X[o.xwv + s] + X[o.xwv + o.S + s] < bound:
             return False
     for g in range(o.G):
         if X[o.xgcapped + g] and X[o.xgcapped + o.G + g]:  # as in _safe_fraction
@@ -234,7 +262,7 @@ def _walk(
     if not sample_values(I, F, field, X, o, margin, 0):
         return False
     while t < end:
-        f = _safe_fraction(I, X, o, cur, margin)
+        f = _safe_fraction(I, F, X, o, cur, margin, q0, q1)
         nxt = 1 - cur
         if f >= step:  # a jump: nothing can lose its margin before t + f
             t_next = min(t + f, end)
@@ -244,6 +272,7 @@ def _walk(
         else:  # a step the two-sample bound must certify, else the jump f
             if 2.0 * f < smallest:
                 return False
+            _levers(I, F, X, o, q0, q1)  # of this sample, before the next is placed
             t_next = min(t + min(step, 2.0 * f), end)
             set_at(X, o, q0, q1, t_next)
             if not sample_values(I, F, field, X, o, margin, nxt):
