@@ -185,13 +185,23 @@ def set_at(X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray, f: float) -> N
 
 @njit(cache=True, inline="always")
 def _levers(
-    I: IntArray, F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray
-) -> None:
-    """``X[o.xlever + s]`` = A_s (:func:`~planning.compiled.geometry.lever_sum`) of every
-    world-checked sphere."""
+    I: IntArray, F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray,
+    row: int, margin: float, dt: float,
+) -> None:  # fmt: skip
+    """``X[o.xlever + s]`` = A_s (:func:`~planning.compiled.geometry.lever_sum`) of each
+    world-checked sphere whose two-sample bound over the next ``dt`` could fail with its
+    edge-wide reach, from the sample in ``row`` (placed in ``X``); inf for the others. The
+    next sample's value is at least the margin, so a sphere whose value plus the margin
+    passes that bound passes it with the next value too (rounding is monotonic), and its
+    local bound is not needed: :func:`_pair_bound_holds` then decides as the reference."""
+    wv = o.xwv + row * o.S
     for s in range(o.S):
-        if I[o.sworld + s]:
+        if not I[o.sworld + s]:
+            continue
+        if X[wv + s] + margin < 2.0 * margin + X[o.xreach + s] * dt:
             X[o.xlever + s] = lever_sum(I, F, X, o, q0, q1, s)
+        else:
+            X[o.xlever + s] = np.inf
 
 
 @njit(cache=True, inline="always")
@@ -272,8 +282,8 @@ def _walk(
         else:  # a step the two-sample bound must certify, else the jump f
             if 2.0 * f < smallest:
                 return False
-            _levers(I, F, X, o, q0, q1)  # of this sample, before the next is placed
             t_next = min(t + min(step, 2.0 * f), end)
+            _levers(I, F, X, o, q0, q1, cur, margin, t_next - t)  # before the next is placed
             set_at(X, o, q0, q1, t_next)
             if not sample_values(I, F, field, X, o, margin, nxt):
                 return False
