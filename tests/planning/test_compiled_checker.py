@@ -264,14 +264,15 @@ def test_the_dense_certificate_proves_what_it_claims(
     worlds: dict[str, object], robot: RobotModel, spheres: SphereModel
 ) -> None:
     # Long edges from near the obstacles: some certified by the dense certificate alone,
-    # some refused by one of its samples, some walked where its bound fails. The
-    # compiled certificate finds the same, the compiled checker answers as the reference,
-    # and every edge the certificate passes keeps the margin at a tenth of the resolution.
+    # some refused by one of its samples, some walked where its bound fails; and short ones,
+    # walked whole. The compiled certificate finds the same, the compiled checker answers as
+    # the reference, and every edge the certificate passes keeps the margin at a tenth of the
+    # resolution.
     world = worlds["primitives"]
     ref, fast = _both(robot, spheres, world)
     rng = np.random.default_rng(8)
-    starts = _valid_near(ref, rng, 4000, 300)
-    scale = np.repeat([0.25, 0.8, 0.5], 100)[:, None]
+    starts = _valid_near(ref, rng, 4000, 340)
+    scale = np.repeat([0.25, 0.8, 0.5, 0.04], [100, 100, 100, 40])[:, None]
     ends = np.clip(starts + rng.normal(size=starts.shape) * scale, robot.lower, robot.upper)
     # and long edges through configurations 6-20 mm from the obstacles
     near = _near(ref, rng, 3000)
