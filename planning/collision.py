@@ -18,7 +18,7 @@ is how far along the edge nothing can lose its margin. ``reach_s`` takes each jo
 at its longest (the chain from the joint to the sphere), so the walk also bounds sphere s's
 motion from where it is: over a fraction tau of the edge from a sample, it moves at most
 
-    tau A_s + tau^2 B_s,    A_s = sum_j |dq_j| l_sj,    B_s = 1/2 sum_j |dq_j| sum_k |dq_k| d_sk
+    tau A_s + tau^2 B_s,   A_s = sum_j |dq_j| l_sj,   B_s = 1/2 sum_j |dq_j| sum_k |dq_k| d_sk
 
 where l_sj is the centre's distance from the axis of revolute joint j at the sample (the
 chain bound d_sj for a prismatic joint) and k runs over the joints between j and the sphere:

@@ -211,8 +211,9 @@ def _safe_fraction(
 ) -> float:  # fmt: skip
     """How far along the edge (fraction) no sphere can lose its margin nor a pair its gap,
     from the sample whose values are in ``row`` and whose placement is in ``X``. A sphere's
-    local bound (:func:`~planning.compiled.geometry.lever_sum`) is computed only where its edge-wide bound would set the
-    minimum so far: the larger of its two fractions counts, so the minimum is the same."""
+    local bound (:func:`~planning.compiled.geometry.lever_sum`) is computed only where its
+    edge-wide bound would set the minimum so far: the larger of its two fractions counts, so
+    the minimum is the same."""
     f = np.inf
     wv, pv = o.xwv + row * o.S, o.xpv + row * o.P
     for s in range(o.S):
