@@ -37,8 +37,8 @@ dt = min(step, 2 f), and the two samples a, b must satisfy
 or the walk takes the jump f instead; a step below 1/:data:`MIN_STEP_DIVISOR` of the
 resolution step is not taken, and the edge is refused (it grazes the margin too closely to
 be certified). Distances are 1-Lipschitz in the path length of a centre, so every point
-between a and b keeps clearance >= margin and gap >= 0. Every sample must be valid as well. A path whose
-edges a planner certified therefore passes any finer sampled check
+between a and b keeps clearance >= margin and gap >= 0. Every sample must be valid as well.
+A path whose edges a planner certified therefore passes any finer sampled check
 (:meth:`SphereCollisionChecker.edges_valid_sampled`, the harness's). Cloud worlds answer with
 a lower bound of the true distance, so there the guarantee holds for the true geometry.
 
