@@ -110,6 +110,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         ("--modes", "steps the head proposes at once (relaxed winner-takes-all when > 1)"),
     ):
         sizes.add_argument(flag, type=int, help=help_text)
+    tr.add_argument(
+        "--family-weights",
+        type=_family_weights,
+        default={},
+        metavar="FAMILY=W,...",
+        help="draw a family's training pairs W times as often as the others' (default 1 each)",
+    )
     tr.add_argument("--resume", action="store_true", help="continue from --out if it exists")
     tr.add_argument("--robot", help="robot config YAML (default: UR5)")
     tr.set_defaults(func=cmd_train)
@@ -219,6 +226,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         device=args.device,
         threads=args.threads,
         val_every=args.val_every,
+        family_weights=args.family_weights,
     )
     from planning.neural.data import read_manifest
     from planning.neural.models import ModelCfg
@@ -276,6 +284,23 @@ def cmd_train(args: argparse.Namespace) -> int:
         f"trained {args.model}",
     )
     return 0
+
+
+def _family_weights(text: str) -> dict[str, float]:
+    """``shelf_i=2,shelf_ii=2`` as {family: weight}; the names are checked against the data."""
+    out: dict[str, float] = {}
+    for item in filter(None, text.split(",")):
+        name, _, value = item.partition("=")
+        try:
+            weight = float(value)
+        except ValueError:
+            weight = float("nan")
+        if not 0 < weight < float("inf"):
+            raise argparse.ArgumentTypeError(
+                f"'{item}' is not FAMILY=W with a finite weight W > 0 (e.g. shelf_iii=2)"
+            )
+        out[name.strip()] = weight
+    return out
 
 
 def _configuration(text: str | None, robot: Any, what: str) -> np.ndarray:

@@ -21,7 +21,7 @@ import math
 import platform
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +58,10 @@ class TrainCfg:
     seed: int = 0
     device: str = "auto"
     threads: int = 0  # CPU threads for torch; 0: torch's default (all cores)
+    # How often a family's training pairs are drawn, relative to the others' (1 for a family
+    # not named); validation draws every pair alike. Measured: the shelves at 2 lifted GAIDE
+    # and SIMPNet alike (docs/results.md, "Twice the shelves' pairs").
+    family_weights: dict[str, float] = field(default_factory=dict)
 
     def check(self) -> None:
         if self.steps < 1 or self.batch < 1 or not self.lr > 0 or not 0 <= self.val_share < 1:
@@ -65,19 +69,30 @@ class TrainCfg:
                 "need steps >= 1, batch >= 1, lr > 0 and 0 <= val_share < 1; got "
                 f"{self.steps}, {self.batch}, {self.lr}, {self.val_share}"
             )
+        bad = {k: w for k, w in self.family_weights.items() if not (0 < w < math.inf)}
+        if bad:
+            raise ModelError(f"family weights must be finite and > 0; got {bad}")
 
 
 class Pairs:
-    """Training pairs of a set of paths, both directions, drawn in vectorized batches."""
+    """Training pairs of a set of paths, both directions, drawn in vectorized batches: each
+    pair alike, or with ``weights`` (one per family of ``ps``) in proportion to its path's
+    family's weight."""
 
-    def __init__(self, ps: PathSet, path_ids: npt.NDArray[np.int64]) -> None:
-        oriented, scene_of = [], []
+    def __init__(
+        self,
+        ps: PathSet,
+        path_ids: npt.NDArray[np.int64],
+        weights: npt.NDArray[np.float64] | None = None,
+    ) -> None:
+        oriented, scene_of, family_of = [], [], []
         for p in path_ids:
             path = ps.paths[int(p)].astype(np.float32)
             if len(path) < 2:
                 continue
             oriented += [path, path[::-1]]
             scene_of += [int(ps.scene_of[p])] * 2
+            family_of += [int(ps.families[p])] * 2
         if not oriented:
             raise ModelError("no path with two or more waypoints to train on")
         self.q = np.concatenate(oriented)
@@ -90,6 +105,10 @@ class Pairs:
         self.end = ends[owner][self.index]
         self.scene = np.asarray(scene_of)[owner][self.index]
         self.n_paths = len(oriented) // 2
+        self.cdf = None  # drawn alike
+        if weights is not None:
+            w = np.asarray(weights, float)[np.asarray(family_of)[owner][self.index]]
+            self.cdf = np.cumsum(w) / w.sum()
 
     def __len__(self) -> int:
         return len(self.index)
@@ -98,7 +117,10 @@ class Pairs:
         self, rng: np.random.Generator, size: int
     ) -> tuple[npt.NDArray[np.int64], np.ndarray, np.ndarray, np.ndarray]:
         """(scene indices, q, goal, q_next) for ``size`` random pairs."""
-        k = rng.integers(0, len(self.index), size)
+        if self.cdf is None:
+            k = rng.integers(0, len(self.index), size)
+        else:
+            k = np.minimum(np.searchsorted(self.cdf, rng.random(size)), len(self.index) - 1)
         g, e = self.index[k], self.end[k]
         later = g + 1 + np.floor(rng.random(size) * (e - g)).astype(np.int64)
         goal_idx = np.where(rng.random(size) < 0.5, e, np.minimum(later, e))
@@ -159,7 +181,7 @@ class Trainer:
         is_val = np.isin(self.paths.scene_of, held)
         if held.size and is_val.all():
             raise ModelError("too few scenes to hold some out for validation")
-        self.train_pairs = Pairs(self.paths, np.flatnonzero(~is_val))
+        self.train_pairs = Pairs(self.paths, np.flatnonzero(~is_val), self._family_weights())
         self.val_pairs = Pairs(self.paths, np.flatnonzero(is_val)) if is_val.any() else None
         self.embodiment = build_embodiment(robot)
         self.robot_cloud = RobotCloud(robot, self.embodiment)
@@ -191,6 +213,19 @@ class Trainer:
         self.wall_s = 0.0
         self.amp = self.device.type == "cuda"
         self.scaler = torch.amp.GradScaler("cuda", enabled=self.amp)
+
+    def _family_weights(self) -> npt.NDArray[np.float64] | None:
+        """One weight per family of the data (``cfg.family_weights``), or None: all alike."""
+        given = self.cfg.family_weights
+        if not given:
+            return None
+        names = self.paths.family_names
+        unknown = sorted(set(given) - set(names))
+        if unknown:
+            raise ModelError(
+                f"family_weights names {unknown}, not in the data; its families: {list(names)}"
+            )
+        return np.array([given.get(name, 1.0) for name in names])
 
     def resume(self, path: str | Path) -> None:
         ck = load_checkpoint(path, self.robot, self.kind)

@@ -270,3 +270,43 @@ def test_torchrun_with_two_processes_follows_the_single_process_loss_curve(
     assert len(a) == len(b) == 6
     assert a[-1] < 0.7 * a[0] and b[-1] < 0.7 * b[0], ("both learn", a, b)
     assert np.all(np.abs(a - b) <= 0.25 * np.maximum(a, b)), (a, b)
+
+
+def test_family_weights_draw_a_familys_pairs_that_much_more_often(
+    data_dir: Path, robot: RobotModel, tmp_path: Path
+) -> None:
+    from planning.neural.train import Pairs
+
+    ps = load_paths(data_dir)
+    ids = np.arange(len(ps.paths))
+    box = ps.family_names.index("box")
+
+    def box_share(pairs: Pairs) -> float:
+        scenes = pairs.batch(np.random.default_rng(0), 40_000)[0]
+        family_of_scene = {int(s): int(f) for s, f in zip(ps.scene_of, ps.families, strict=True)}
+        return float(np.mean([family_of_scene[int(s)] == box for s in scenes]))
+
+    alike = Pairs(ps, ids)
+    weights = np.ones(len(ps.family_names))
+    weights[box] = 3.0
+    tripled = Pairs(ps, ids, weights)
+    share = box_share(alike)  # the box's share of the pairs
+    expected = 3 * share / (3 * share + (1 - share))
+    assert 0.1 < share < 0.9
+    assert abs(box_share(tripled) - expected) < 0.01, (box_share(tripled), expected)
+
+    cfg = TrainCfg(steps=2, batch=8, val_share=0.0, family_weights={"box": 2.0})
+    trainer = Trainer("mpnet", robot, data_dir, cfg, TINY)
+    trainer.run(tmp_path / "w.pt")
+    card = json.loads((tmp_path / "w.pt.card.json").read_text())
+    assert card["train"]["family_weights"] == {"box": 2.0}
+    with pytest.raises(ModelError, match=r"names \['shelf_ix'\], not in the data"):
+        Trainer("mpnet", robot, data_dir, replace(cfg, family_weights={"shelf_ix": 2.0}), TINY)
+    with pytest.raises(ModelError, match="finite and > 0"):
+        Trainer("mpnet", robot, data_dir, replace(cfg, family_weights={"box": 0.0}), TINY)
+    bad = run_cli(
+        "train", "--model", "mpnet", "--data", str(data_dir), "--out", str(tmp_path / "x.pt"),
+        "--family-weights", "box=two",
+    )  # fmt: skip
+    assert bad.returncode != 0 and "not FAMILY=W" in bad.stderr
+    assert not (tmp_path / "x.pt").exists()
