@@ -363,6 +363,25 @@ def axis_distance(
 
 
 @njit(cache=True, inline="always")
+def lever_term(
+    I: IntArray, F: FloatArray, o: Off, q0: FloatArray, q1: FloatArray, s: int, j: int,
+    R: tuple, t: tuple, c: tuple,  # type: ignore[type-arg]
+) -> float:  # fmt: skip
+    """Joint j's term of sphere s's lever sum (:func:`lever_sum`): the joint's motion over the
+    edge q0 -> q1 times the distance of the sphere centre ``c`` from its axis, the joint at
+    world rotation ``R`` and translation ``t`` (revolute), or times its bound (prismatic); 0
+    where the joint does not carry the sphere."""
+    col = I[o.idxq + j]
+    w = F[o.disp + s * o.dof + col] if col >= 0 else 0.0
+    if w == 0.0:
+        return 0.0
+    d = abs(q1[col] - q0[col])
+    if I[o.jtype + j] != JOINT_REVOLUTE:
+        return d * w
+    return d * axis_distance(F, o.axis + 3 * j, R, t, c)
+
+
+@njit(cache=True, inline="always")
 def lever_sum(
     I: IntArray, F: FloatArray, X: FloatArray, o: Off, q0: FloatArray, q1: FloatArray, s: int
 ) -> float:
@@ -373,17 +392,9 @@ def lever_sum(
     centre = (X[c], X[c + 1], X[c + 2])
     acc = 0.0
     for j in range(1, o.J):
-        col = I[o.idxq + j]
-        w = F[o.disp + s * o.dof + col] if col >= 0 else 0.0
-        if w == 0.0:
-            continue
-        d = abs(q1[col] - q0[col])
-        if I[o.jtype + j] != JOINT_REVOLUTE:
-            acc += d * w
-            continue
         R, t = o.xR + 9 * j, o.xt + 3 * j
         rot = (X[R], X[R + 1], X[R + 2], X[R + 3], X[R + 4], X[R + 5], X[R + 6], X[R + 7], X[R + 8])
-        acc += d * axis_distance(F, o.axis + 3 * j, rot, (X[t], X[t + 1], X[t + 2]), centre)
+        acc += lever_term(I, F, o, q0, q1, s, j, rot, (X[t], X[t + 1], X[t + 2]), centre)
     return acc
 
 

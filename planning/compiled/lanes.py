@@ -42,7 +42,7 @@ from numba import njit
 
 from gaide_core.types import BoolArray, FloatArray, IntArray
 from planning.collision import CLEARANCE_CAP, DENSE_SAMPLES, DENSE_STRIDE, coarse_first
-from planning.compiled.geometry import axis_distance, is_cloud_lattice
+from planning.compiled.geometry import is_cloud_lattice, lever_term
 from planning.compiled.layout import (
     BLOCK,
     JOINT_PRISMATIC,
@@ -550,18 +550,10 @@ def _lane_lever_sum(I: IntArray, F: FloatArray, o: Off, W: FloatArray, C: FloatA
     centre = (C[s, 0, k], C[s, 1, k], C[s, 2, k])
     acc = 0.0
     for j in range(1, o.J):
-        col = I[o.idxq + j]
-        w = F[o.disp + s * o.dof + col] if col >= 0 else 0.0
-        if w == 0.0:
-            continue
-        d = abs(q1[col] - q0[col])
-        if I[o.jtype + j] != JOINT_REVOLUTE:
-            acc += d * w
-            continue
         rot = (W[j, 0, k], W[j, 1, k], W[j, 2, k], W[j, 3, k], W[j, 4, k], W[j, 5, k],
                W[j, 6, k], W[j, 7, k], W[j, 8, k])  # fmt: skip
         t = (W[j, 9, k], W[j, 10, k], W[j, 11, k])
-        acc += d * axis_distance(F, o.axis + 3 * j, rot, t, centre)
+        acc += lever_term(I, F, o, q0, q1, s, j, rot, t, centre)
     return acc
 
 
