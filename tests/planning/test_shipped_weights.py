@@ -50,6 +50,10 @@ RETRAINED = (
     ]
     + [("weights-train50k-clear3-k2", "train50k-clear3", 50398, kind, 5000) for kind in MODEL_KINDS]
     + [("weights-train50k-band-10k", "train50k-band", 50398, kind, 10000) for kind in MODEL_KINDS]
+    + [
+        ("weights-train50k-band-shelves2", "train50k-band", 50398, kind, 5000)
+        for kind in MODEL_KINDS
+    ]
 )
 
 
