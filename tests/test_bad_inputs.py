@@ -9,6 +9,7 @@ cost); the full-disk and read-only cases run it in a private mount namespace
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -561,3 +562,29 @@ def test_ctrl_c_that_a_finalizer_drops_is_delivered_again() -> None:
         Finalized()  # dropped at once
         while time.monotonic() < give_up:
             time.sleep(0.01)
+
+
+def test_an_interrupt_that_escaped_exec_still_exits_130(tmp_path: Path) -> None:
+    """CPython notes a KeyboardInterrupt escaping code run from a string (as in a
+    dataclass's or a namedtuple's making), and ``python -m`` ends by SIGINT at exit even
+    when the interrupt was caught: the code ``main`` returns must still be the process's."""
+    (tmp_path / "interrupted_in_exec.py").write_text(
+        "import sys\n"
+        "import gaide.cli as cli\n"
+        "def command(argv):\n"
+        "    try:\n"
+        "        exec('raise KeyboardInterrupt')  # as if Ctrl-C landed there\n"
+        "    except KeyboardInterrupt:\n"
+        "        return 130\n"
+        "cli._main = command\n"
+        "sys.exit(cli.main([]))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-m", "interrupted_in_exec"],
+        cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(tmp_path)])},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 130, proc.stderr  # -2 without the fix
