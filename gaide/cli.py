@@ -118,8 +118,12 @@ def _ctrl_c_after_imports() -> Iterator[None]:
 
     An interrupt that lands in a finalizer (a ``__del__`` or a weak reference's callback,
     which the garbage collector runs in the middle of any code) is one Python prints and
-    drops: it is delivered again, to whatever runs next."""
-    if threading.current_thread() is not threading.main_thread():
+    drops: it is delivered again, to whatever runs next.
+
+    A process started with Ctrl-C ignored (a script's background job, which the shell starts
+    so, so that Ctrl-C stops the script's foreground command only) keeps ignoring it."""
+    ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    if ignored or threading.current_thread() is not threading.main_thread():
         yield
         return
     held = threading.Event()

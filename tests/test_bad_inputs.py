@@ -8,12 +8,14 @@ cost); the full-disk and read-only cases run it in a private mount namespace
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -521,8 +523,23 @@ def test_a_read_only_folder_is_one_line(tmp_path: Path) -> None:
     assert not any(d.iterdir())
 
 
+def _ctrl_c_not_ignored() -> None:
+    """In a child before it starts: Ctrl-C's default action, whatever this process has."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@contextlib.contextmanager
+def _ctrl_c_taken() -> Iterator[None]:
+    """Python's own Ctrl-C handler for a while (this process may ignore Ctrl-C: a test run
+    started in the background by a script does)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def test_ctrl_c_is_one_line_and_exit_130(tmp_path: Path) -> None:
-    import signal
     import time
 
     out = tmp_path / "out"
@@ -531,6 +548,7 @@ def test_ctrl_c_is_one_line_and_exit_130(tmp_path: Path) -> None:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=_ctrl_c_not_ignored,  # as typed at a terminal, even under a background CI
     )
     time.sleep(4.0)  # whatever it is doing by then (loading, calibrating), it must stop cleanly
     proc.send_signal(signal.SIGINT)
@@ -547,7 +565,6 @@ def test_ctrl_c_that_a_finalizer_drops_is_delivered_again() -> None:
     """The garbage collector runs finalizers in the middle of any code, and Python prints
     and drops what they raise: an interrupt landing there (``gaide demo`` met one in a weak
     reference's callback, and ran to the end) must still stop the command."""
-    import signal
     import time
 
     from gaide.cli import _ctrl_c_after_imports
@@ -558,7 +575,7 @@ def test_ctrl_c_that_a_finalizer_drops_is_delivered_again() -> None:
             time.sleep(0.001)
 
     give_up = time.monotonic() + 10.0  # the interrupt comes through within milliseconds
-    with pytest.raises(KeyboardInterrupt), _ctrl_c_after_imports():
+    with _ctrl_c_taken(), pytest.raises(KeyboardInterrupt), _ctrl_c_after_imports():
         Finalized()  # dropped at once
         while time.monotonic() < give_up:
             time.sleep(0.01)
@@ -588,3 +605,34 @@ def test_an_interrupt_that_escaped_exec_still_exits_130(tmp_path: Path) -> None:
         timeout=120,
     )
     assert proc.returncode == 130, proc.stderr  # -2 without the fix
+
+
+def test_ctrl_c_ignored_by_the_parent_stays_ignored() -> None:
+    """A script's background job starts with Ctrl-C ignored: the command must not take it
+    back (Ctrl-C at the terminal would stop the job along with the script's foreground)."""
+    child = (
+        "import signal, time\n"
+        "from gaide.cli import _ctrl_c_after_imports\n"
+        "with _ctrl_c_after_imports():\n"
+        "    signal.raise_signal(signal.SIGINT)\n"
+        "    time.sleep(0.05)\n"
+        "print('ran to the end')\n"
+    )
+    ignoring = subprocess.run(
+        [sys.executable, "-c", child],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+    )
+    assert ignoring.returncode == 0 and "ran to the end" in ignoring.stdout, ignoring.stderr
+    taking = subprocess.run(
+        [sys.executable, "-c", child],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=_ctrl_c_not_ignored,
+    )
+    assert taking.returncode != 0 and "KeyboardInterrupt" in taking.stderr  # the control
