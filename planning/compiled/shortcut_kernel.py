@@ -7,9 +7,7 @@ straight edge can skip (greedily, from each kept waypoint to the farthest one it
 then, for each pair of uniform numbers ``u[i]`` (drawn by the caller's seeded generator),
 joins the two points of the path at those arc-length fractions by a straight edge when that
 edge and the two pieces of the edges it starts and ends on are certified and it saves more
-than ``min_saving`` rad; a final vertex reduction follows, which skips the edges between
-the input's rows that the first found to fail (the same certificate would fail them again:
-on a path no shortcut changed, it certifies nothing). Every candidate edge is
+than ``min_saving`` rad; a final vertex reduction follows. Every candidate edge is
 screened (:func:`~planning.compiled.validity.edge_screen`) before it is certified. Only
 strictly shorter replacements are taken, so the path never grows longer; its first and last
 rows never change.
@@ -34,9 +32,6 @@ from gaide_core.types import FloatArray, IntArray
 from planning.compiled.layout import Field, Off, offsets
 from planning.compiled.validity import edge_ok, edge_screen
 
-#: Input rows up to which the edges found to fail are remembered (a bool per pair: 256 KiB).
-MEMO_ROWS = 512
-
 
 @njit(cache=True, inline="always")
 def _dist(path: FloatArray, i: int, j: int) -> float:
@@ -58,33 +53,21 @@ def _edge(
 
 
 @njit(cache=True)
-def _reduce(I, F, field, X, o, path, inherited, origin, failed, k, margin, resolution, a, b):  # type: ignore[no-untyped-def]
-    """Drop the waypoints a certified edge can skip; returns the new row count.
-
-    ``origin[r]`` is row r's index in the input path (-1 for a shortcut's point) and
-    ``failed`` (n, n) marks the input rows' edges known to fail: they are not certified
-    again, and the ones that fail here are marked. The final reduction so skips every edge
-    between input rows that the first one tried (the first from each kept row to every row
-    beyond the one it reached), and only certifies the edges to and from shortcuts' points."""
+def _reduce(I, F, field, X, o, path, inherited, k, margin, resolution, a, b):  # type: ignore[no-untyped-def]
+    """Drop the waypoints a certified edge can skip; returns the new row count."""
     out = 1
     i = 0
     while i < k - 1:
         j = k - 1
         while j > i + 1:
-            oi, oj = origin[i], origin[j]
-            known = oi >= 0 and oj >= 0 and oi < failed.shape[0] and oj < failed.shape[0]
-            if not (known and failed[oi, oj]):
-                for c in range(o.dof):
-                    a[c] = path[i, c]
-                    b[c] = path[j, c]
-                if _edge(I, F, field, X, o, a, b, margin, resolution):
-                    break
-                if known:
-                    failed[oi, oj] = True
+            for c in range(o.dof):
+                a[c] = path[i, c]
+                b[c] = path[j, c]
+            if _edge(I, F, field, X, o, a, b, margin, resolution):
+                break
             j -= 1
         # a skip is certified; a kept edge keeps its flag (read before out - 1 <= i is written)
         inherited[out - 1] = inherited[i] if j == i + 1 else False
-        origin[out] = origin[j]
         for c in range(o.dof):
             path[out, c] = path[j, c]
         out += 1
@@ -117,12 +100,7 @@ def shorten(I, F, field, path, inherited, k, u, margin, resolution, min_saving):
     a, b, pa, pb = np.empty(dof), np.empty(dof), np.empty(dof), np.empty(dof)
     if k <= 2:
         return k
-    origin = np.full(path.shape[0], -1, np.int64)
-    for r in range(k):
-        origin[r] = r
-    n = k if k <= MEMO_ROWS else 0
-    failed = np.zeros((n, n), np.bool_)
-    k = _reduce(I, F, field, X, o, path, inherited, origin, failed, k, margin, resolution, a, b)
+    k = _reduce(I, F, field, X, o, path, inherited, k, margin, resolution, a, b)
     arc = np.empty(path.shape[0])
     for it in range(u.shape[0]):
         if k <= 2:
@@ -160,19 +138,16 @@ def shorten(I, F, field, path, inherited, k, u, margin, resolution, min_saving):
                 for c in range(dof):
                     path[r + shift, c] = path[r, c]
                 inherited[r + shift] = inherited[r]
-                origin[r + shift] = origin[r]
         elif shift < 0:
             for r in range(ib + 1, k):
                 for c in range(dof):
                     path[r + shift, c] = path[r, c]
                 inherited[r + shift] = inherited[r]
-                origin[r + shift] = origin[r]
         for c in range(dof):
             path[ia + 1, c] = pa[c]
             path[ia + 2, c] = pb[c]
         inherited[ia] = True
         inherited[ia + 1] = False
         inherited[ia + 2] = True
-        origin[ia + 1] = origin[ia + 2] = -1
         k += shift
-    return _reduce(I, F, field, X, o, path, inherited, origin, failed, k, margin, resolution, a, b)
+    return _reduce(I, F, field, X, o, path, inherited, k, margin, resolution, a, b)
