@@ -618,21 +618,18 @@ def test_ctrl_c_ignored_by_the_parent_stays_ignored() -> None:
         "    time.sleep(0.05)\n"
         "print('ran to the end')\n"
     )
-    ignoring = subprocess.run(
-        [sys.executable, "-c", child],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
-    )
+
+    def started_with(ctrl_c: signal.Handlers) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-c", child],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, ctrl_c),
+        )
+
+    ignoring = started_with(signal.SIG_IGN)
     assert ignoring.returncode == 0 and "ran to the end" in ignoring.stdout, ignoring.stderr
-    taking = subprocess.run(
-        [sys.executable, "-c", child],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        preexec_fn=_ctrl_c_not_ignored,
-    )
+    taking = started_with(signal.SIG_DFL)
     assert taking.returncode != 0 and "KeyboardInterrupt" in taking.stderr  # the control
