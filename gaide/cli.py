@@ -59,12 +59,12 @@ def main(argv: list[str] | None = None) -> int:
 def _forget_escaped_interrupts() -> None:
     """Let the exit code ``main`` returns be the process's, even after a handled Ctrl-C.
 
-    CPython notes every KeyboardInterrupt that escapes code run from a string (``exec`` and
-    ``eval`` of source, which ``dataclasses``, ``collections.namedtuple`` and numba use to
-    make functions), and ``python -m`` then ends the process by SIGINT at exit, caught or
-    not: ``python -m gaide demo`` interrupted while such code ran printed its one line and
-    died by SIGINT instead of exiting with 130 (rarely: it depends on where the interrupt
-    lands). CPython clears that note each time it starts running source from a string, so
+    CPython notes every KeyboardInterrupt that escapes code run from a string (``exec`` of
+    source: rosbags registers a bag's message types so, and ``dataclasses`` and
+    ``collections.namedtuple`` make functions so), and ``python -m`` then ends the process
+    by SIGINT at exit, caught or not. ``python -m gaide demo`` interrupted while rosbags ran
+    such code (about 4 s in) printed its one line, then died by SIGINT instead of exiting
+    with 130. CPython clears that note each time it starts running source from a string, so
     running an empty one clears it (so since 3.8, which brought the note; no public call
     does it)."""
     exec("")
