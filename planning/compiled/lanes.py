@@ -41,7 +41,14 @@ import numpy as np
 from numba import njit
 
 from gaide_core.types import BoolArray, FloatArray, IntArray
-from planning.collision import CLEARANCE_CAP, DENSE_SAMPLES, DENSE_STRIDE, coarse_first
+from planning.collision import (
+    CLEARANCE_CAP,
+    DENSE_SAMPLES,
+    DENSE_SPLIT,
+    DENSE_STRIDE,
+    DENSE_UNITS,
+    coarse_first,
+)
 from planning.compiled.geometry import is_cloud_lattice, lever_term
 from planning.compiled.layout import (
     BLOCK,
@@ -608,16 +615,18 @@ def _world_cap(top: float, margin: float, dt: FloatArray, n: int) -> float:
 def dense_fails(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
                 q0: FloatArray, q1: FloatArray, margin: float, fails: IntArray) -> int:  # fmt: skip
     """The dense certificate of the edge q0 -> q1 (:mod:`planning.collision`): -1 if one of
-    its samples is invalid, else the number m of fine intervals whose samples k and k + 1
-    fail the two-sample bound, their k ascending in ``fails[:m]`` (none: the edge is
-    certified). The reach of every sphere and pair over the edge, and every sphere's slack,
-    are in ``X`` (by :func:`~planning.compiled.validity.edge_steps`).
+    its samples is invalid, else the number m of parts (DENSE_UNITS to the edge) whose
+    samples k and k + 1 fail the two-sample bound, their k ascending in ``fails[:m]`` (none:
+    the edge is certified; ``fails`` holds DENSE_UNITS). The reach of every sphere and pair
+    over the edge, and every sphere's slack, are in ``X`` (by
+    :func:`~planning.compiled.validity.edge_steps`).
 
     One pass of all the samples, one per lane, or (:func:`~planning.collision.coarse_first`)
     two: every DENSE_STRIDE-th sample, then the samples of the coarse intervals that fail
     the bound (ends included: the lanes of a run of such intervals are neighbouring samples,
-    and the last of one run and the first of the next are not, ``dt`` 0). Each pass leaves
-    out the values of links and pair groups whose bounding balls already pass
+    and the last of one run and the first of the next are not, ``dt`` 0). Then the fine
+    intervals that fail are split DENSE_SPLIT ways, eight of them (64 lanes) a pass. Each
+    pass leaves out the values of links and pair groups whose bounding balls already pass
     (:func:`_dense_values`); each is a lower bound of the values it stands for, so it can
     only pass where they all pass, and the answer is the reference's, which computes every
     value. On rrtc's raw edges, vertex-reduction skips and
@@ -642,6 +651,7 @@ def dense_fails(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
     n = (K - 1) // c + 1
     for k in range(n):
         idx[k] = c * k
+    m = 0  # the fine intervals whose bound fails
     for refine in range(2):  # the coarse samples, then the failing intervals' samples
         for k in range(n):
             t[k] = idx[k] / (K - 1)
@@ -653,27 +663,51 @@ def dense_fails(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
                              _world_cap(top, margin, dt, n), n):  # fmt: skip
             return -1
         if refine or c == 1:
-            m = 0
             for k in range(n - 1):
                 if dt[k] > 0.0 and _bound_fails(I, F, X, o, margin, V, G, W, C, q0, q1, clear,
                                                 passes, dt[k], k):  # fmt: skip
                     fails[m] = idx[k]
                     m += 1
-            return m
+            break
         # the coarse intervals that fail the bound: their samples, in runs
-        m, last = 0, -1
+        r, last = 0, -1
         for k in range(n - 1):
             if not _bound_fails(I, F, X, o, margin, V, G, W, C, q0, q1, clear, passes,
                                 dt[k], k):  # fmt: skip
                 continue
             for f in range(c * k if last != c * k else c * k + 1, c * (k + 1) + 1):
-                idx[m] = f  # (this loop reads no index)
-                m += 1
+                idx[r] = f  # (this loop reads no index)
+                r += 1
             last = c * (k + 1)
-        if m == 0:
+        if r == 0:
             return 0
-        n = m
-    return 0
+        n = r
+    if m == 0:
+        return 0
+    # the fine intervals that fail the bound, split DENSE_SPLIT ways: the samples of a chunk
+    # of whole intervals (ends included) at a time, each part's bound between neighbours
+    ks = fails[:m].copy()
+    lanes = DENSE_SPLIT + 1
+    per = K // lanes
+    out = 0
+    for c0 in range(0, m, per):
+        n = 0
+        for i in range(c0, min(m, c0 + per)):
+            for j in range(lanes):
+                t[n] = (DENSE_SPLIT * ks[i] + j) / DENSE_UNITS
+                n += 1
+        for k in range(n - 1):
+            dt[k] = t[k + 1] - t[k] if k % lanes != DENSE_SPLIT else 0.0
+        if not _dense_values(I, F, field, X, o, q0, q1, margin, t, dt, qv, sn, cs, W, C, LC,
+                             V, G, bad, need, passes, clear, S, low, one, prims,
+                             _world_cap(top, margin, dt, n), n):  # fmt: skip
+            return -1
+        for k in range(n - 1):
+            if dt[k] > 0.0 and _bound_fails(I, F, X, o, margin, V, G, W, C, q0, q1, clear,
+                                            passes, dt[k], k):  # fmt: skip
+                fails[out] = DENSE_SPLIT * ks[c0 + k // lanes] + k % lanes
+                out += 1
+    return out
 
 
 @njit(cache=True, inline="always")

@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from gaide_core.types import FloatArray, IntArray
-from planning.collision import CLEARANCE_CAP, DENSE_MIN_STEPS, DENSE_SAMPLES, MIN_STEP_DIVISOR
+from planning.collision import CLEARANCE_CAP, DENSE_MIN_STEPS, DENSE_UNITS, MIN_STEP_DIVISOR
 from planning.compiled.geometry import (
     _reach_apart,
     edge_slack,
@@ -313,12 +313,12 @@ def edge_ok(
 ) -> bool:
     """Is the straight edge q0 -> q1 (dof,) certified (module docstring)?"""
     n = edge_steps(I, F, X, o, q0, q1, resolution)
-    fails = np.empty(DENSE_SAMPLES, np.int64)
+    fails = np.empty(DENSE_UNITS, np.int64)
     if n >= DENSE_MIN_STEPS:
         m = dense_fails(I, F, field, X, o, q0, q1, margin, fails)
         if m < 0:
             return False
-        last = DENSE_SAMPLES - 1  # the walk covers each interval the dense samples do not
+        last = DENSE_UNITS  # the walk covers each part the dense samples do not
     else:
         m, last = 1, 1  # the walk covers the edge
         fails[0] = 0
