@@ -19,7 +19,8 @@ primitives, 2.2 -> 4.0-4.6M against a 50,000-point cloud, 2.0 -> 9.0M in the emp
 
 :func:`dense_fails` puts the same steps to a second use: a long edge's evenly spaced
 samples, one per lane (where it pays, every DENSE_STRIDE-th first, then those of the
-intervals that need them), with their capped clearances and self-pair gaps, for the dense
+intervals that need them, then those of the fine intervals split), with their capped
+clearances and self-pair gaps, for the dense
 certificate of :mod:`planning.collision` (the walk takes its samples one after the other,
 each placed by the last; these are placed in advance, so they can go together).
 
@@ -648,66 +649,64 @@ def dense_fails(I: IntArray, F: FloatArray, field: Field, X: FloatArray, o: Off,
     S = _scratch(K)
     t, dt, low, idx = np.empty(K), np.zeros(K), np.empty(K), np.empty(K, np.int64)
     one, prims = np.empty(K), np.empty(max(o.M, 1), np.bool_)
+    ks = np.empty(K, np.int64)  # the fine intervals whose bound fails
+    lanes = DENSE_SPLIT + 1  # a fine interval's samples when split, ends included
+    per = K // lanes  # split intervals per pass
     n = (K - 1) // c + 1
     for k in range(n):
         idx[k] = c * k
-    m = 0  # the fine intervals whose bound fails
-    for refine in range(2):  # the coarse samples, then the failing intervals' samples
-        for k in range(n):
-            t[k] = idx[k] / (K - 1)
-        for k in range(n - 1):  # neighbours: every coarse pair, consecutive refined samples
-            near = refine == 0 or idx[k + 1] == idx[k] + 1
-            dt[k] = t[k + 1] - t[k] if near else 0.0
+    # 0: the coarse samples; 1: every sample, or the failing coarse intervals' ones; 2: the
+    # failing fine intervals split, `per` at a time (one call site each for the two inlined
+    # pass functions: a second doubled the kernels' compile time)
+    stage = 0 if c > 1 else 1
+    m = done = out = 0
+    while True:
+        if stage < 2:
+            for k in range(n):
+                t[k] = idx[k] / (K - 1)
+            for k in range(n - 1):  # neighbours: every coarse pair, consecutive fine samples
+                near = stage == 0 or idx[k + 1] == idx[k] + 1
+                dt[k] = t[k + 1] - t[k] if near else 0.0
+        else:
+            n = 0
+            for i in range(done, min(m, done + per)):
+                for j in range(lanes):
+                    t[n] = (DENSE_SPLIT * ks[i] + j) / DENSE_UNITS
+                    n += 1
+            for k in range(n - 1):  # neighbours within an interval
+                dt[k] = t[k + 1] - t[k] if k % lanes != DENSE_SPLIT else 0.0
         if not _dense_values(I, F, field, X, o, q0, q1, margin, t, dt, qv, sn, cs, W, C, LC,
                              V, G, bad, need, passes, clear, S, low, one, prims,
                              _world_cap(top, margin, dt, n), n):  # fmt: skip
             return -1
-        if refine or c == 1:
-            for k in range(n - 1):
-                if dt[k] > 0.0 and _bound_fails(I, F, X, o, margin, V, G, W, C, q0, q1, clear,
-                                                passes, dt[k], k):  # fmt: skip
-                    fails[m] = idx[k]
-                    m += 1
-            break
-        # the coarse intervals that fail the bound: their samples, in runs
         r, last = 0, -1
         for k in range(n - 1):
-            if not _bound_fails(I, F, X, o, margin, V, G, W, C, q0, q1, clear, passes,
-                                dt[k], k):  # fmt: skip
+            if dt[k] == 0.0 or not _bound_fails(I, F, X, o, margin, V, G, W, C, q0, q1,
+                                                clear, passes, dt[k], k):  # fmt: skip
                 continue
-            for f in range(c * k if last != c * k else c * k + 1, c * (k + 1) + 1):
-                idx[r] = f  # (this loop reads no index)
-                r += 1
-            last = c * (k + 1)
-        if r == 0:
-            return 0
-        n = r
-    if m == 0:
-        return 0
-    # the fine intervals that fail the bound, split DENSE_SPLIT ways: the samples of a chunk
-    # of whole intervals (ends included) at a time, each part's bound between neighbours
-    ks = fails[:m].copy()
-    lanes = DENSE_SPLIT + 1
-    per = K // lanes
-    out = 0
-    for c0 in range(0, m, per):
-        n = 0
-        for i in range(c0, min(m, c0 + per)):
-            for j in range(lanes):
-                t[n] = (DENSE_SPLIT * ks[i] + j) / DENSE_UNITS
-                n += 1
-        for k in range(n - 1):
-            dt[k] = t[k + 1] - t[k] if k % lanes != DENSE_SPLIT else 0.0
-        if not _dense_values(I, F, field, X, o, q0, q1, margin, t, dt, qv, sn, cs, W, C, LC,
-                             V, G, bad, need, passes, clear, S, low, one, prims,
-                             _world_cap(top, margin, dt, n), n):  # fmt: skip
-            return -1
-        for k in range(n - 1):
-            if dt[k] > 0.0 and _bound_fails(I, F, X, o, margin, V, G, W, C, q0, q1, clear,
-                                            passes, dt[k], k):  # fmt: skip
-                fails[out] = DENSE_SPLIT * ks[c0 + k // lanes] + k % lanes
+            if stage == 0:  # the failing coarse interval's samples, in runs
+                for f in range(c * k if last != c * k else c * k + 1, c * (k + 1) + 1):
+                    idx[r] = f  # (this stage reads no index)
+                    r += 1
+                last = c * (k + 1)
+            elif stage == 1:
+                ks[m] = idx[k]
+                m += 1
+            else:
+                fails[out] = DENSE_SPLIT * ks[done + k // lanes] + k % lanes
                 out += 1
-    return out
+        if stage == 0:
+            if r == 0:
+                return 0
+            n, stage = r, 1
+        elif stage == 1:
+            if m == 0:
+                return 0
+            stage = 2
+        else:
+            done += per
+            if done >= m:
+                return out
 
 
 @njit(cache=True, inline="always")
