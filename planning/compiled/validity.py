@@ -12,10 +12,10 @@ jumps as long as every sphere's clearance allows, resolution steps with the two-
 where it does not, every sample valid, stopping at the first failure. A long edge is first
 offered the dense certificate, its samples checked together
 (:func:`~planning.compiled.lanes.dense_fails`, which splits each fine interval whose bound
-fails into finer parts), and the walk covers each part whose bound still fails. The reference's coarse pre-pass (every 8th resolution sample) is left out
-here: it never changes the answer, and with the jumps it cost more than it saved (measured
-on the benchmark workcell: 17.8k vs 20.3k edges/s with primitives, 14.7k vs 17.6k with the
-cloud).
+fails into finer parts), and the walk covers each part whose bound still fails. The
+reference's coarse pre-pass (every 8th resolution sample) is left out here: it never
+changes the answer, and with the jumps it cost more than it saved (measured on the
+benchmark workcell: 17.8k vs 20.3k edges/s with primitives, 14.7k vs 17.6k with the cloud).
 
 Entry points (the functions without a leading underscore that take ``I, F, field``) are
 called from Python; the rest are inlined into them.
