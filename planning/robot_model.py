@@ -182,8 +182,8 @@ class RobotModel:
                 f"{what} has shape {arr.shape}; expected ({self.dof},) for joints "
                 f"{list(self.joint_names)}"
             )
-        bad = np.flatnonzero(~np.isfinite(arr))
-        if bad.size:
+        if not np.isfinite(arr).all():
+            bad = np.flatnonzero(~np.isfinite(arr))
             raise RobotModelError(
                 f"{what} has non-finite values at joints {[self.joint_names[i] for i in bad]}"
             )

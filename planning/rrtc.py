@@ -22,7 +22,7 @@ import numpy as np
 
 from gaide_core.errors import PlanningError
 from gaide_core.types import Array
-from planning.collision import CollisionChecker, KernelTablesSource
+from planning.collision import CollisionChecker
 from planning.compiled import rrtc_kernel, shortcut_kernel
 from planning.compiled.tables import Tables
 from planning.planner import MultiRootPlanner, PlanResult, PlanStatus, path_length
@@ -67,12 +67,16 @@ def kernel_tables(checker: CollisionChecker) -> Tables:
     """The compiled tables of ``checker``, through its optional ``kernel_tables()`` (see
     :class:`~planning.collision.KernelTablesSource`; made once and kept on a compiled
     checker); PlanningError for a checker without them."""
-    if not isinstance(checker, KernelTablesSource):
+    # Looked up by name: isinstance against the runtime-checkable protocol costs ~5 us, and
+    # a plan asks twice.
+    tables = getattr(checker, "kernel_tables", None)
+    if tables is None:
         raise PlanningError(
             "the compiled planners need a checker with kernel tables (the sphere checkers), "
             f"not {type(checker).__name__}"
         )
-    return checker.kernel_tables()
+    result: Tables = tables()
+    return result
 
 
 class CompiledRRTConnect(MultiRootPlanner):
@@ -219,13 +223,14 @@ def _trace(nodes: Array, parents: np.ndarray, a: int, b: int) -> tuple[Array, in
     same configuration: the trees met there), and the two roots' indices."""
     head, root_a = _to_root(parents[0], a)
     tail, root_b = _to_root(parents[1], b)
-    rows = [nodes[0, k] for k in reversed(head)] + [nodes[1, k] for k in tail[1:]]
-    return np.array(rows), root_a, root_b
+    return np.concatenate([nodes[0, head[::-1]], nodes[1, tail[1:]]]), root_a, root_b
 
 
 def _to_root(parents: np.ndarray, k: int) -> tuple[list[int], int]:
     """Node ``k`` and its ancestors up to its tree's root (parents < 0), and the root."""
     chain = [k]
-    while parents[chain[-1]] >= 0:
-        chain.append(int(parents[chain[-1]]))
+    up = int(parents[k])
+    while up >= 0:
+        chain.append(up)
+        up = int(parents[up])
     return chain, chain[-1]
