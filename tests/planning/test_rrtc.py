@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import pytest
 
 from gaide_core.errors import ConfigError, PlanningError
 from planning.checker import make_checker
 from planning.collision import CollisionChecker
+from planning.compiled import shortcut_kernel
 from planning.families import generate_problem
 from planning.family_names import FAMILIES, split_seed
 from planning.path_check import check_path
@@ -170,38 +169,54 @@ def test_shorten_skips_savings_below_min_saving(wall: CollisionChecker) -> None:
     assert path_length(free) < path_length(reduced) - 1e-3
 
 
-class _EdgeLog:
-    """A checker that records the edges it is asked to certify, and can refuse them all."""
-
-    def __init__(self, inner: CollisionChecker, refuse: bool) -> None:
-        self.inner, self.refuse = inner, refuse
-        self.margin, self.resolution = inner.margin, inner.resolution
-        self.asked: list[tuple[np.ndarray, np.ndarray]] = []
-
-    def kernel_tables(self):  # type: ignore[no-untyped-def]
-        return self.inner.kernel_tables()  # type: ignore[attr-defined]
-
-    def edges_valid(self, Q0: np.ndarray, Q1: np.ndarray) -> np.ndarray:
-        self.asked += list(zip(Q0, Q1, strict=True))
-        return np.zeros(len(Q0), bool) if self.refuse else self.inner.edges_valid(Q0, Q1)
+def _shortcut_pass(
+    checker: CollisionChecker, path: np.ndarray, seed: int, iterations: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The compiled pass on ``path`` as :func:`shorten` calls it: the result, the flags of
+    its edges that lie on given ones, and the kernel's report."""
+    I, F, field = checker.kernel_tables().args()  # type: ignore[attr-defined]  # noqa: E741
+    rows = np.empty((len(path) + iterations + 2, path.shape[1]))
+    rows[: len(path)] = path
+    inherited = np.zeros(len(rows), bool)
+    report, lengths = np.zeros(2, np.int64), np.zeros(2)
+    u = np.random.default_rng(seed).random((iterations, 2))
+    k = shortcut_kernel.shorten(
+        I, F, field, rows, inherited, len(path), u, checker.margin, checker.resolution, 1e-9,
+        report, lengths,
+    )  # fmt: skip
+    assert lengths[0] == pytest.approx(path_length(path))
+    assert lengths[1] == pytest.approx(path_length(rows[:k]))
+    return rows[:k], inherited[: k - 1], report
 
 
 def test_the_pieces_a_shortcut_keeps_are_certified_when_they_stay(wall: CollisionChecker) -> None:
-    """The kernel takes a shortcut's two pieces on the certificate of the edges they lie on;
-    the ones left in the path are certified before it is returned, and a refusal keeps the
-    input."""
+    """The kernel takes a shortcut's two pieces on the certificate of the edges they lie on,
+    and certifies the ones left in the path before it returns."""
     raw = _raw_wall_path(wall)
     assert raw.path is not None
-    log = _EdgeLog(wall, refuse=False)
-    short = shorten(log, raw.path, np.random.default_rng(0), 16)  # type: ignore[arg-type]
+    short, inherited, report = _shortcut_pass(wall, raw.path, 0, 16)
+    assert inherited.any(), "these 16 shortcuts leave pieces in the path"
+    assert report.tolist() == [inherited.sum(), 0]
+    assert wall.edges_valid(short[:-1], short[1:]).all()
     np.testing.assert_array_equal(short, shorten(wall, raw.path, np.random.default_rng(0), 16))
-    assert log.asked, "these 16 shortcuts leave pieces in the path"
-    edges = {(a.tobytes(), b.tobytes()) for a, b in itertools.pairwise(short)}
-    assert all((a.tobytes(), b.tobytes()) in edges for a, b in log.asked)
-    assert wall.first_invalid_edge(short) is None
 
-    refused = shorten(_EdgeLog(wall, refuse=True), raw.path, np.random.default_rng(0), 16)  # type: ignore[arg-type]
-    np.testing.assert_array_equal(refused, raw.path)
+
+def test_a_piece_that_fails_its_certificate_gives_the_input_back(
+    wall: CollisionChecker,
+) -> None:
+    """The pass trusts the edges it is given. Given one through the wall (start to goal,
+    joint 0 swept across it), a shortcut from beyond the wall keeps the piece from the start,
+    which crosses it; that piece fails at the end, and the input comes back unchanged."""
+    start, goal = wall_problem()
+    aside = goal + 0.6 * np.eye(6)[1]
+    path = np.stack([start, goal, aside])
+    assert wall.config_valid(path).all()
+    assert wall.edges_valid(path[:-1], path[1:]).tolist() == [False, True]
+    rows, inherited, report = _shortcut_pass(wall, path, 0, 32)
+    assert report[1] == 1 and report[0] >= 1
+    np.testing.assert_array_equal(rows, path)
+    assert not inherited.any()
+    np.testing.assert_array_equal(shorten(wall, path, np.random.default_rng(0), 32), path)
 
 
 @pytest.mark.parametrize("family", FAMILIES)
