@@ -130,10 +130,12 @@ class CompiledRRTConnect(MultiRootPlanner):
         sizes = np.array([len(starts), len(goals)], np.int64)
         nodes[0, : len(starts)] = starts
         nodes[1, : len(goals)] = goals
-        # the traced path, and room for the shortcut pass to work on it in place
-        rows = 2 * cap + cfg.shortcut_iterations + 2
-        traced = np.empty((rows, dof))
-        out = np.zeros(8, np.int64)
+        # the traced path (at most every node of both trees), and room for the shortcut pass
+        # to work on it in place
+        room = cfg.shortcut_iterations + 2
+        traced = np.empty((2 * cap + room, dof))
+        out = np.zeros(10, np.int64)
+        out[8] = -1  # no connect pending
         block, pos = rng.random((_BLOCK, dof)), 0
         iterations = checks = 0
         joined = False
@@ -152,8 +154,7 @@ class CompiledRRTConnect(MultiRootPlanner):
                 break
             if out[0] == rrtc_kernel.FULL:
                 nodes, parents = _grown(nodes, parents)
-                traced = np.empty((rows + 2 * cap, dof))
-                rows, cap = len(traced), 2 * cap
+                traced = np.empty((2 * nodes.shape[1] + room, dof))
             if pos == _BLOCK:
                 block, pos = rng.random((_BLOCK, dof)), 0
             if deadline is not None and time.perf_counter() >= deadline:

@@ -128,9 +128,14 @@ def _trace(
 
 @njit(cache=True)
 def grow(I, F, field, nodes, parents, sizes, u, it0, margin, resolution, step, out, path):  # type: ignore[no-untyped-def]
-    """Run up to len(u) iterations. ``out`` (8,) receives [status, iterations run, joining
+    """Run up to len(u) iterations. ``out`` (10,) receives [status, iterations run, joining
     node of tree 0, joining node of tree 1, edge checks] and, once JOINED, [path rows, start
-    root, goal root], the path in ``path`` (see the module docstring)."""
+    root, goal root], the path in ``path`` (see the module docstring). A tree that fills up
+    in the middle of a connect returns FULL with the connect's state in out[8:10] (the new
+    node of the extended tree, the node the other tree goes on from; out[8] is -1 when no
+    connect is pending, and the caller sets it so before the first call): the next call,
+    with the same samples from that iteration on, goes on where it stopped, so the trees
+    are those of a run that never filled up."""
     o = offsets(I)
     X = np.empty(o.xsize)
     dof = o.dof
@@ -142,26 +147,33 @@ def grow(I, F, field, nodes, parents, sizes, u, it0, margin, resolution, step, o
     a = np.empty(dof)
     checks = 0
     for i in range(u.shape[0]):
-        if sizes[0] + 1 >= cap or sizes[1] + 1 >= cap:
-            out[0], out[1], out[4] = FULL, i, checks
-            return
         ta = (it0 + i) % 2
         tb = 1 - ta
-        for j in range(dof):
-            target[j] = lo[j] + u[i, j] * (hi[j] - lo[j])
-        near = _nearest(nodes, ta, sizes[ta], target, dof)
-        _toward(nodes, ta, near, target, step, q, dof)
-        checks += 1
-        if not _valid_move(I, F, field, X, o, nodes, ta, near, q, a, margin, resolution):
-            continue
-        new_a = _add(nodes, parents, sizes, ta, q, near)
-        # connect: grow tree b toward the new node, one step at a time, until blocked
-        for j in range(dof):
-            target[j] = q[j]
-        k = _nearest(nodes, tb, sizes[tb], target, dof)
+        if out[8] >= 0:  # the connect a full tree stopped (only ever for i = 0)
+            new_a, k = out[8], out[9]
+            out[8] = -1
+            for j in range(dof):
+                target[j] = nodes[ta, new_a, j]
+        else:
+            if sizes[0] + 1 >= cap or sizes[1] + 1 >= cap:
+                out[0], out[1], out[4] = FULL, i, checks
+                return
+            for j in range(dof):
+                target[j] = lo[j] + u[i, j] * (hi[j] - lo[j])
+            near = _nearest(nodes, ta, sizes[ta], target, dof)
+            _toward(nodes, ta, near, target, step, q, dof)
+            checks += 1
+            if not _valid_move(I, F, field, X, o, nodes, ta, near, q, a, margin, resolution):
+                continue
+            new_a = _add(nodes, parents, sizes, ta, q, near)
+            # connect: grow tree b toward the new node, one step at a time, until blocked
+            for j in range(dof):
+                target[j] = q[j]
+            k = _nearest(nodes, tb, sizes[tb], target, dof)
         while True:
             if sizes[tb] + 1 >= cap:
                 out[0], out[1], out[4] = FULL, i, checks
+                out[8], out[9] = new_a, k
                 return
             reached = _toward(nodes, tb, k, target, step, q, dof)
             checks += 1

@@ -54,7 +54,7 @@ def warm_up() -> float:
         rrtc_kernel.grow(
             I, F, field, nodes, np.full((2, 8), -1, np.int64), np.ones(2, np.int64),
             rng.random((2, robot.dof)), 0, checker.margin, checker.resolution, 0.1,
-            np.zeros(8, np.int64), np.empty((16, robot.dof)),
+            np.array([0, 0, 0, 0, 0, 0, 0, 0, -1, 0]), np.empty((16, robot.dof)),
         )  # fmt: skip
         shorten(checker, np.stack([home, (home + up) / 2, up]), rng, 4)
         tighten(checker, np.stack([home, up]), BandCfg(iterations=2))  # the band's penalty

@@ -115,6 +115,22 @@ def test_plan_between_joins_one_of_many_roots(wall: CollisionChecker) -> None:
         CompiledRRTConnect().plan_between(wall, starts[:, :5], goals, budget_s=1.0, rng=rng)
 
 
+def test_trees_that_outgrow_their_arrays_plan_the_same_path(wall: CollisionChecker) -> None:
+    """From 4 nodes a tree the arrays (and the buffer the path is traced into) double as
+    the trees grow; the path is the one planned with room from the start."""
+    start, goal = wall_problem()
+
+    def plan(capacity: int) -> PlanResult:
+        planner = CompiledRRTConnect(RRTCCfg(step=0.3, capacity=capacity))
+        return planner.plan(wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(5))
+
+    small, roomy = plan(4), plan(1024)
+    assert small.path is not None and roomy.path is not None
+    assert max(small.stats["tree_sizes"]) > 16, "the trees outgrew 4 nodes several times"
+    np.testing.assert_array_equal(small.path, roomy.path)
+    assert small.stats["raw_waypoints"] == roomy.stats["raw_waypoints"]
+
+
 def test_a_free_straight_edge_is_the_path(wall: CollisionChecker) -> None:
     start, _ = wall_problem()
     goal = start + 0.4 * np.eye(6)[0]
