@@ -120,9 +120,9 @@ def test_trees_that_outgrow_their_arrays_plan_the_same_path(wall: CollisionCheck
     the trees grow; the path is the one planned with room from the start."""
     start, goal = wall_problem()
 
-    def plan(capacity: int) -> PlanResult:
-        planner = CompiledRRTConnect(RRTCCfg(step=0.3, capacity=capacity))
-        return planner.plan(wall, start, goal, budget_s=BUDGET_S, rng=np.random.default_rng(5))
+    def plan(capacity: int) -> PlanResult:  # bounded by iterations alone (no clock)
+        cfg = RRTCCfg(step=0.3, capacity=capacity, max_iterations=100_000)
+        return CompiledRRTConnect(cfg).search(wall, start, goal, np.random.default_rng(5))
 
     small, roomy = plan(4), plan(1024)
     assert small.path is not None and roomy.path is not None
