@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections.abc import Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from gaide_core.atomic import write_bytes_atomic
 from gaide_core.errors import ExecutionError
@@ -16,7 +17,16 @@ if TYPE_CHECKING:
     from planning.robot_model import RobotModel
     from planning.sphere_model import SphereModel
 
-__all__ = ["add_checker_option", "print_table", "robot_and_spheres", "seed", "write_json"]
+T = TypeVar("T")
+
+__all__ = [
+    "add_checker_option",
+    "print_table",
+    "progress",
+    "robot_and_spheres",
+    "seed",
+    "write_json",
+]
 
 
 def robot_and_spheres(config: str | None) -> tuple[RobotModel, SphereModel]:
@@ -25,6 +35,15 @@ def robot_and_spheres(config: str | None) -> tuple[RobotModel, SphereModel]:
     from planning.robot_setup import robot_and_spheres as load
 
     return load(config)
+
+
+def progress(iterable: Iterable[T] | None = None, **kwargs: Any) -> Iterable[T]:
+    """A tqdm progress bar on a terminal; nothing where stderr is a file or a pipe (a CI
+    log, ``2> log``), which would otherwise fill with carriage-return redraws."""
+    from tqdm import tqdm
+
+    bar: Iterable[T] = tqdm(iterable, disable=None, **kwargs)
+    return bar
 
 
 def seed(text: str) -> int:

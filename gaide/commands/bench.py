@@ -11,7 +11,14 @@ from pathlib import Path
 from typing import Any
 
 from gaide.commands.execution import add_bench_parser
-from gaide.common import add_checker_option, print_table, robot_and_spheres, seed, write_json
+from gaide.common import (
+    add_checker_option,
+    print_table,
+    progress,
+    robot_and_spheres,
+    seed,
+    write_json,
+)
 from gaide_core.atomic import write_bytes_atomic
 from gaide_core.errors import ConfigError, ExecutionError
 
@@ -117,7 +124,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_collision(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
 
     from planning.bench_collision import CollisionBenchCfg, run_collision_benchmark
 
@@ -131,7 +137,7 @@ def cmd_collision(args: argparse.Namespace) -> int:
     )
     cfg = replace(cfg, checker=args.checker)
     t0 = time.perf_counter()
-    res = run_collision_benchmark(robot, spheres, cfg, progress=tqdm)
+    res = run_collision_benchmark(robot, spheres, cfg, progress=progress)
     res["wall_s"] = time.perf_counter() - t0
     rows = [
         ("checker", res["checker"]),
@@ -162,7 +168,6 @@ def cmd_collision(args: argparse.Namespace) -> int:
 
 
 def cmd_perception(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
 
     from gaide.bench_detector import run_detector_benchmark
     from gaide.bench_perception import run_perception_benchmark
@@ -175,7 +180,7 @@ def cmd_perception(args: argparse.Namespace) -> int:
         seed=args.seed,
         speed_frames=5 if args.quick else 30,
         handeye_poses=8 if args.quick else 12,
-        progress=tqdm,
+        progress=progress,
     )
     res.update(run_detector_benchmark(seed=args.seed))
     res["wall_s"] = time.perf_counter() - t0
@@ -217,8 +222,6 @@ def cmd_perception(args: argparse.Namespace) -> int:
 def cmd_planning(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from tqdm import tqdm
-
     from gaide_core.errors import PlanningError
     from planning.family_names import parse_families
     from planning.harness import HarnessCfg, run_harness
@@ -247,7 +250,7 @@ def cmd_planning(args: argparse.Namespace) -> int:
         checker=args.checker,
         **({"workers": args.workers} if args.workers else {}),
     )
-    result = run_harness(cfg, progress=tqdm)
+    result = run_harness(cfg, progress=progress)
     print(text_table(result))
     print("\nsuccess per category (all families):")
     print(category_table(result))
@@ -271,7 +274,6 @@ def cmd_planning(args: argparse.Namespace) -> int:
 
 def cmd_oracle(args: argparse.Namespace) -> int:
     import numpy as np
-    from tqdm import tqdm
 
     from gaide_core.errors import PlanningError
     from planning.checker import make_checker
@@ -300,7 +302,7 @@ def cmd_oracle(args: argparse.Namespace) -> int:
     rows, runs = [], []
     families: dict[str, dict[str, float | None]] = {}
     for fam in parse_families(args.families):
-        for i in tqdm(range(args.problems), desc=fam):
+        for i in progress(range(args.problems), desc=fam):
             problem = generate_problem(fam, split_seed("val", i), robot, spheres)
             checker = make_checker(robot, spheres, problem.world)
             q = oracle_quality(

@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from gaide.common import robot_and_spheres, seed
+from gaide.common import progress, robot_and_spheres, seed
 from perception.frames import BagLayout
 
 
@@ -34,7 +34,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
 
     from gaide.synthetic.record import record_scene
     from gaide.synthetic.scene import fixed_scene, hand_eye_scene
@@ -63,7 +62,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         layout=BagLayout(args.layout),
         ros_version=args.ros,
         storage=args.storage,
-        progress=tqdm,
+        progress=progress,
     )
     print(f"bag: {bag}\nground truth: {truth}")
     return 0
