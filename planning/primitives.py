@@ -263,7 +263,7 @@ def _primitive(item: Any, where: str) -> Primitive:
             _positive(item["radius"], f"{where}.radius"),
             np.array(_numbers(item["center"], 3, f"{where}.center", "x, y, z in m")),
         )
-    pose = _pose(item["pose"], f"{where}.pose")
+    pose = parse_pose(item["pose"], f"{where}.pose")
     if kind == "box":
         size = _numbers(item["size"], 3, f"{where}.size", "full edge lengths in m")
         for axis, x in zip("xyz", size, strict=True):
@@ -339,7 +339,7 @@ def _positive(value: Any, where: str) -> float:
     return x
 
 
-def _pose(raw: Any, where: str) -> Array:
+def parse_pose(raw: Any, where: str) -> Array:
     """T_world_obstacle (4, 4) of a pose mapping (module docstring)."""
     if not isinstance(raw, dict):
         raise PlanningError(f"{where}: must be {_POSE_FORMS}, got {show(raw)}")

@@ -33,6 +33,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     exp.add_argument("--robot", help="robot config YAML (default: UR5)")
     exp.add_argument("-o", "--output", required=True, help="problem file (.yaml or .json)")
     exp.set_defaults(func=cmd_export)
+    imp = ssub.add_parser(
+        "import-moveit",
+        help="MoveIt scene/request YAML pairs (MotionBenchMaker's sets) to a problem file",
+    )
+    imp.add_argument(
+        "folders", nargs="+", help="folders of sceneNNNN.yaml / requestNNNN.yaml pairs"
+    )
+    imp.add_argument("--robot", help="robot config YAML whose world frame the scenes use")
+    imp.add_argument("-o", "--output", required=True, help="problem file (.yaml or .json)")
+    imp.set_defaults(func=cmd_import_moveit)
 
 
 def cmd_show(args: argparse.Namespace) -> int:
@@ -86,4 +96,26 @@ def cmd_export(args: argparse.Namespace) -> int:
     ]
     save_problems(args.output, problems)
     print(f"{len(problems)} problems -> {args.output}")
+    return 0
+
+
+def cmd_import_moveit(args: argparse.Namespace) -> int:
+    from planning.checker import make_checker
+    from planning.moveit_import import import_moveit_set
+    from planning.problem import save_problems
+
+    robot, spheres = robot_and_spheres(args.robot)
+    problems = [p for folder in args.folders for p in import_moveit_set(folder, robot.joint_names)]
+    save_problems(args.output, problems)
+    # What the harness will count apart: an end outside the limits or in collision.
+    invalid = 0
+    for p in problems:
+        checker = make_checker(robot, spheres, p.world)
+        invalid += not (
+            checker.config_valid(p.start[None])[0] and checker.config_valid(p.goals).any()
+        )
+    print(
+        f"{len(problems)} problems from {len(args.folders)} folder(s) -> {args.output}; "
+        f"{invalid} with the start or every goal invalid for this robot"
+    )
     return 0
