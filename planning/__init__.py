@@ -1,7 +1,7 @@
 """Planning: the robot (Pinocchio model, kinematics, IK, sphere model), worlds and collision
-checking (the numpy reference and the compiled core), the task families and problem files,
-the planners (OMPL baselines, the compiled RRT-Connect, the neural bidirectional planner),
-path processing and the benchmark harness.
+checking (the numpy reference and the compiled core), the task families, problem files and
+MoveIt imports, the planners (OMPL baselines, the compiled RRT-Connect, the neural
+bidirectional planner), path processing and the benchmark harness.
 
 Depends on ``gaide_core`` only. Modules import their heavy libraries (Pinocchio, OMPL,
 torch) themselves, so importing one module costs only what it needs.
@@ -20,6 +20,7 @@ __all__ = [
     "ik",
     "kinematics",
     "mesh_reference",
+    "moveit_import",
     "neural",
     "neural_planner",
     "ompl_planners",
