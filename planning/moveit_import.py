@@ -16,8 +16,9 @@ What is read, as MoveIt means it:
 - each entry of ``goal_constraints`` is one goal (MoveIt is satisfied by any of them), given
   by its ``joint_constraints``; joints the robot does not plan (a gripper's) are ignored.
 
-Meshes, cones, planes, octomaps and pose goals are not problems the harness can run: they are
-refused with a line that names the file and the object, as is any other malformed entry.
+Meshes, cones, planes, objects in another frame or attached to the robot, and pose goals are
+not problems the harness can run: they are refused with a line that names the file and the
+object, as is any other malformed entry.
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ from planning.problem import Problem
 _PAIR = re.compile(r"^(scene|request)(\d+)\.ya?ml$")
 _SHAPES = {"box": "[x, y, z] edge lengths", "cylinder": "[height, radius]", "sphere": "[radius]"}
 _UNSUPPORTED = ("meshes", "mesh_poses", "planes", "plane_poses")
+# Frame names that mean the scene's planning frame (MotionBenchMaker's objects give none).
+_PLANNING_FRAMES = ("", "world", "/world")
 
 
 def import_moveit_set(folder: str | Path, joint_names: tuple[str, ...]) -> list[Problem]:
@@ -87,6 +90,12 @@ def scene_obstacles(scene: Any, where: str) -> list[dict[str, Any]]:
     world = _get(scene, "world", where)
     if not isinstance(world, dict):
         raise PlanningError(f"{where}: world must be a mapping, got {show(world)}")
+    state = scene.get("robot_state")
+    if isinstance(state, dict) and state.get("attached_collision_objects"):
+        raise PlanningError(
+            f"{where}: robot_state has attached collision objects; a problem's obstacles are "
+            "fixed in the world, so only world.collision_objects can be imported"
+        )
     objects = world.get("collision_objects") or []
     if not isinstance(objects, list):
         raise PlanningError(f"{where}: world.collision_objects must be a list, got {show(objects)}")
@@ -96,6 +105,13 @@ def scene_obstacles(scene: Any, where: str) -> list[dict[str, Any]]:
         if not isinstance(obj, dict):
             raise PlanningError(f"{here}: must be a mapping, got {show(obj)}")
         here = f"{where}: collision object {show(obj.get('id', i))}"
+        header = obj.get("header")
+        frame = header.get("frame_id", "") if isinstance(header, dict) else ""
+        if frame not in _PLANNING_FRAMES:
+            raise PlanningError(
+                f"{here}: is given in frame {show(frame)}; only objects in the planning frame "
+                "('' or 'world') can be imported"
+            )
         for key in _UNSUPPORTED:
             if obj.get(key):
                 raise PlanningError(f"{here}: has {key}; only box, cylinder and sphere "

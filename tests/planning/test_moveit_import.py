@@ -41,6 +41,7 @@ def _scene() -> dict:
                 },
                 {
                     "id": "ball",
+                    "header": {"frame_id": "world"},
                     "primitives": [{"type": "sphere", "dimensions": [0.08]}],
                     "primitive_poses": [{"position": [0.4, -0.3, 0.3]}],
                 },
@@ -105,6 +106,10 @@ def test_a_set_becomes_problems_in_the_robots_joint_order(tmp_path: Path) -> Non
          "a cylinder's dimensions are [height, radius], got [1]"),
         (lambda s, r: s["world"]["collision_objects"][2]["primitive_poses"][0].update(
             orientation=[0, 0, 0, 2]), "must be a unit quaternion"),
+        (lambda s, r: s["world"]["collision_objects"][2].update(
+            header={"frame_id": "wrist_3_link"}), "'ball': is given in frame 'wrist_3_link'"),
+        (lambda s, r: s.update(robot_state={"attached_collision_objects": [{"object": {}}]}),
+         "robot_state has attached collision objects"),
         (lambda s, r: r["goal_constraints"][1].pop("joint_constraints"),
          "goal_constraints[1]: only joint goals can be imported"),
         (lambda s, r: r["goal_constraints"][0]["joint_constraints"].pop(2),
