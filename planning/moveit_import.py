@@ -73,6 +73,23 @@ def import_moveit_set(folder: str | Path, joint_names: tuple[str, ...]) -> list[
     return [_problem(family, n, scenes[n], requests[n], joint_names) for n in sorted(scenes)]
 
 
+def import_moveit_sets(
+    folders: list[str] | list[Path], joint_names: tuple[str, ...]
+) -> list[Problem]:
+    """The problems of several folders (:func:`import_moveit_set`), in the order given. A
+    folder's name is its family and its problems' name prefix, so two folders of one name
+    (``a/cage`` and ``b/cage``) are refused: their problems' names would collide."""
+    seen: dict[str, Path] = {}
+    for folder in map(Path, folders):
+        if folder.name in seen:
+            raise PlanningError(
+                f"{folder} and {seen[folder.name]} have the same name; each folder becomes the "
+                "family of that name, so give folders with distinct names"
+            )
+        seen[folder.name] = folder
+    return [p for folder in seen.values() for p in import_moveit_set(folder, joint_names)]
+
+
 def _problem(
     family: str, n: int, scene: Path, request: Path, joint_names: tuple[str, ...]
 ) -> Problem:
@@ -139,6 +156,8 @@ def _obstacle(prim: Any, T: Array, where: str) -> dict[str, Any]:
     if not isinstance(dims, list) or len(dims) != want:
         raise PlanningError(f"{where}: a {kind}'s dimensions are {_SHAPES[kind]}, got {show(dims)}")
     d = [number(v, f"{where}.dimensions") for v in dims]
+    if min(d) <= 0:
+        raise PlanningError(f"{where}: a {kind}'s dimensions must be > 0 m, got {d}")
     xyz, quat = to_xyz_quat(T)
     pose = {"xyz": xyz.tolist(), "quat_xyzw": quat.tolist()}
     if kind == "box":

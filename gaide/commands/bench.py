@@ -124,7 +124,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_collision(args: argparse.Namespace) -> int:
-
     from planning.bench_collision import CollisionBenchCfg, run_collision_benchmark
 
     robot, spheres = robot_and_spheres(args.robot)
@@ -168,7 +167,6 @@ def cmd_collision(args: argparse.Namespace) -> int:
 
 
 def cmd_perception(args: argparse.Namespace) -> int:
-
     from gaide.bench_detector import run_detector_benchmark
     from gaide.bench_perception import run_perception_benchmark
 

@@ -34,7 +34,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-
     from gaide.synthetic.record import record_scene
     from gaide.synthetic.scene import fixed_scene, hand_eye_scene
     from planning.checker import make_checker

@@ -101,12 +101,11 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_import_moveit(args: argparse.Namespace) -> int:
     from planning.checker import make_checker
-    from planning.moveit_import import import_moveit_set
+    from planning.moveit_import import import_moveit_sets
     from planning.problem import save_problems
 
     robot, spheres = robot_and_spheres(args.robot)
-    problems = [p for folder in args.folders for p in import_moveit_set(folder, robot.joint_names)]
-    save_problems(args.output, problems)
+    problems = import_moveit_sets(args.folders, robot.joint_names)
     # What the harness will count apart: an end outside the limits or in collision.
     invalid = 0
     for p in problems:
@@ -114,6 +113,7 @@ def cmd_import_moveit(args: argparse.Namespace) -> int:
         invalid += not (
             checker.config_valid(p.start[None])[0] and checker.config_valid(p.goals).any()
         )
+    save_problems(args.output, problems)
     print(
         f"{len(problems)} problems from {len(args.folders)} folder(s) -> {args.output}; "
         f"{invalid} with the start or every goal invalid for this robot"

@@ -11,7 +11,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from gaide_core.errors import PlanningError
-from planning.moveit_import import import_moveit_set
+from planning.moveit_import import import_moveit_set, import_moveit_sets
 from planning.primitives import Box, Cylinder, Sphere
 from planning.problem import load_problems
 from planning.robot_model import RobotModel
@@ -104,6 +104,8 @@ def test_a_set_becomes_problems_in_the_robots_joint_order(tmp_path: Path) -> Non
          "type 'cone' cannot be imported; valid: box"),
         (lambda s, r: s["world"]["collision_objects"][1]["primitives"][0].update(dimensions=[1]),
          "a cylinder's dimensions are [height, radius], got [1]"),
+        (lambda s, r: s["world"]["collision_objects"][0]["primitives"][0].update(
+            dimensions=[0.2, 0.0, 0.02]), "a box's dimensions must be > 0 m"),
         (lambda s, r: s["world"]["collision_objects"][2]["primitive_poses"][0].update(
             orientation=[0, 0, 0, 2]), "must be a unit quaternion"),
         (lambda s, r: s["world"]["collision_objects"][2].update(
@@ -141,6 +143,15 @@ def test_an_unpaired_or_empty_folder_is_refused(tmp_path: Path) -> None:
         import_moveit_set(empty, UR5)
     with pytest.raises(PlanningError, match="not a folder"):
         import_moveit_set(tmp_path / "nowhere", UR5)
+
+
+def test_two_folders_of_one_name_are_refused(tmp_path: Path) -> None:
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    one, two = _write_set(tmp_path / "a", 1), _write_set(tmp_path / "b", 1)
+    assert [p.name for p in import_moveit_sets([one], UR5)] == ["cage_ur5-0001"]
+    with pytest.raises(PlanningError, match="have the same name"):
+        import_moveit_sets([one, two], UR5)
 
 
 def test_the_cli_writes_a_problem_file_the_planners_run(tmp_path: Path, robot: RobotModel) -> None:
