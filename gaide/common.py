@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
+import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -20,6 +22,7 @@ if TYPE_CHECKING:
 T = TypeVar("T")
 
 __all__ = [
+    "JobProgress",
     "add_checker_option",
     "print_table",
     "progress",
@@ -44,6 +47,55 @@ def progress(iterable: Iterable[T] | None = None, **kwargs: Any) -> Iterable[T]:
 
     bar: Iterable[T] = tqdm(iterable, disable=None, **kwargs)
     return bar
+
+
+class JobProgress:
+    """Progress of a long job (training, data generation) on stderr. On a terminal, a tqdm
+    bar. Elsewhere (``nohup ... > log``, a pipe, a CI log), where a bar's carriage-return
+    redraws would pile up on one line, a plain line each time another ``1/lines`` of the job
+    is done (so one at its end): ``train gaide: 500/5000 steps (10%), val=0.0415, 121 s``."""
+
+    def __init__(
+        self, desc: str, unit: str, total: int | None = None, initial: int = 0, lines: int = 20
+    ) -> None:
+        self.desc, self.unit, self.total, self.lines = desc, unit, total, lines
+        self.done = initial
+        self._t0 = time.perf_counter()
+        self._printed = self._bucket(initial)
+        self._bar: Any = None
+        if sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=total, initial=initial, desc=desc, unit=unit)
+
+    def _bucket(self, done: int) -> int:
+        return done * self.lines // self.total if self.total else done
+
+    def update(self, done: int, total: int | None = None, **postfix: str) -> None:
+        """``done`` units of ``total`` (if it is known only now) are finished."""
+        if total is not None:
+            self.total = total
+        if self._bar is not None:
+            self._bar.total = self.total
+            self._bar.update(done - self.done)
+            if postfix:
+                self._bar.set_postfix(postfix)
+        elif self._bucket(done) > self._printed:  # the last unit always starts a bucket
+            self._printed = self._bucket(done)
+            share = f" ({100 * done // self.total}%)" if self.total else ""
+            fields = "".join(f", {k}={v}" for k, v in postfix.items())
+            elapsed = time.perf_counter() - self._t0
+            of = f"/{self.total}" if self.total else ""
+            print(
+                f"{self.desc}: {done}{of} {self.unit}s{share}{fields}, {elapsed:.0f} s",
+                file=sys.stderr,
+                flush=True,
+            )
+        self.done = done
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
 
 
 def seed(text: str) -> int:

@@ -15,7 +15,13 @@ from execution.ros2_goal import Ros2GoalCfg
 from execution.sim_cfg import SimCfg
 from execution.timing_cfg import TimingCfg, TimingMode
 from execution.urscript import UrScriptCfg, UrScriptMode, ur_order
-from gaide.common import add_checker_option, print_table, robot_and_spheres, write_json
+from gaide.common import (
+    add_checker_option,
+    print_table,
+    progress,
+    robot_and_spheres,
+    write_json,
+)
 from gaide.scene_spec import HELP as SCENE_HELP
 from gaide.scene_spec import Scene, load_scene, next_to
 from gaide_core.errors import ConfigError, ExecutionError, TimingError
@@ -376,8 +382,6 @@ def add_bench_parser(bsub: argparse._SubParsersAction) -> None:  # type: ignore[
 
 
 def cmd_bench_timing(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from execution.bench_timing import TimingBenchCfg, run_timing_benchmark
     from planning.family_names import parse_families
 
@@ -385,7 +389,7 @@ def cmd_bench_timing(args: argparse.Namespace) -> int:
     cfg = TimingBenchCfg(
         paths=args.paths, families=tuple(parse_families(args.families)), budget_s=args.budget
     )
-    res = run_timing_benchmark(robot, spheres, cfg, progress=tqdm)
+    res = run_timing_benchmark(robot, spheres, cfg, progress=progress)
 
     def fmt(key: str, spec: str, target: str) -> tuple[str, str]:
         value = res[key]

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from gaide.common import add_checker_option, print_table, robot_and_spheres, seed
+from gaide.common import JobProgress, add_checker_option, print_table, robot_and_spheres, seed
 from gaide.pipeline.config import PlanningCfg
 from gaide_core.errors import ConfigError, ExecutionError, PlanningError
 from gaide_core.plan_file import PlanFile, write_plan
@@ -145,8 +145,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_data_generate(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from planning.family_names import parse_categories
     from planning.neural.data import DataCfg
     from planning.neural.data_backends import generate
@@ -185,11 +183,10 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
         )
     cfg.check()  # before the progress bar: a bad setting is the only line printed
     t0 = time.perf_counter()
-    bar = tqdm(desc="shards", unit="shard")
+    bar = JobProgress("gaide data generate", "shard")
 
     def progress(done: int, total: int) -> None:
-        bar.total = total
-        bar.update(1)
+        bar.update(done, total)
 
     manifest = generate(
         cfg,
@@ -213,8 +210,6 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from planning.neural.train import TrainCfg, Trainer
 
     robot, _ = robot_and_spheres(args.robot)
@@ -255,20 +250,15 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.resume and Path(args.out).exists():
         trainer.resume(args.out)
     main = trainer.dist.main  # under torchrun, rank 0 reports
-    bar = tqdm(
-        total=cfg.steps,
-        initial=trainer.step,
-        desc=f"train {args.model}",
-        unit="step",
-        disable=not main,
-    )
+    bar = JobProgress(f"train {args.model}", "step", cfg.steps, trainer.step) if main else None
 
     def progress(step: int, entry: dict[str, float]) -> None:
-        bar.update(step - bar.n)
-        bar.set_postfix(train=f"{entry['train']:.4f}", val=f"{entry['val']:.4f}")
+        if bar is not None:
+            bar.update(step, train=f"{entry['train']:.4f}", val=f"{entry['val']:.4f}")
 
     digest = trainer.run(args.out, progress)
-    bar.close()
+    if bar is not None:
+        bar.close()
     if not main:
         return 0
     last = trainer.history[-1] if trainer.history else {}

@@ -3,6 +3,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
+from gaide.common import JobProgress
 from tests.conftest import run_cli
 
 
@@ -38,3 +41,32 @@ def test_bad_input_prints_one_line_and_exits_with_the_stage_code(tmp_path: Path)
     cfg.write_text(f"urdf: {tmp_path / 'missing.urdf'}\n")
     proc = run_cli("robot", "info", "--robot", str(cfg))
     assert proc.returncode == 6 and "missing.urdf does not exist" in proc.stderr
+
+
+def test_a_long_job_off_a_terminal_logs_plain_lines(capsys: pytest.CaptureFixture[str]) -> None:
+    # stderr is captured here, as in `nohup gaide train ... > log`: no bar, a line per 1/4
+    bar = JobProgress("train gaide", "step", total=100, lines=4)
+    for step in range(10, 101, 10):
+        bar.update(step, val="0.0100")
+    bar.update(100, val="0.0100")  # the end once more: nothing new to say
+    bar.close()
+    err = capsys.readouterr().err
+    assert "\r" not in err
+    lines = err.splitlines()
+    assert [line.split(",")[0] for line in lines] == [
+        "train gaide: 30/100 steps (30%)",
+        "train gaide: 50/100 steps (50%)",
+        "train gaide: 80/100 steps (80%)",
+        "train gaide: 100/100 steps (100%)",
+    ]
+    assert all(", val=0.0100, " in line and line.endswith(" s") for line in lines)
+
+    # a total known only once the job has started (data generation's shards)
+    shards = JobProgress("gaide data generate", "shard")
+    shards.update(1, 2)
+    shards.update(2, 2)
+    assert (
+        capsys.readouterr()
+        .err.splitlines()[-1]
+        .startswith("gaide data generate: 2/2 shards (100%)")
+    )

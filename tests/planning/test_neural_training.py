@@ -176,6 +176,8 @@ def test_gaide_train_writes_a_checkpoint_with_its_card_and_resumes(
         *args, *sizes, "--steps", "6", "--batch", "8", "--device", "cpu", "--threads", "1"
     )
     assert first.returncode == 0, first.stderr
+    # stderr is a pipe, as under nohup: plain progress lines, no bar's redraws
+    assert "\r" not in first.stderr and "train mpnet: 6/6 steps (100%), train=" in first.stderr
     card = json.loads((tmp_path / "m.pt.card.json").read_text())
     assert card["model"] == "mpnet" and card["steps"] == 6 and card["device"].startswith("cpu")
     assert card["data_paths"] >= 3 and card["history"] and "sha256" in card
