@@ -89,11 +89,13 @@ class RunRecord:
     budget_s: float
     detail: str = ""
     overhead_s: float = 0.0  # problem generation + path check (harness time, not planner time)
-    # neural planners: proposal steps, those where no dropout rollout was valid, and those
-    # where no proposal was valid, the widened second draw included
+    # neural planners: proposal steps, those where no dropout rollout was valid, those
+    # where no proposal was valid, the widened second draw included, and those where valid
+    # proposals were drawn but no valid edge joined any to the tree
     proposal_steps: int = 0
     no_valid_proposals: int = 0
     no_valid_rollouts: int = 0
+    no_reachable_rollouts: int = 0
 
 
 # -- worker side -------------------------------------------------------------------------
@@ -181,6 +183,7 @@ def _run(
         proposal_steps=int(result.stats.get("proposal_steps", 0)),
         no_valid_proposals=int(result.stats.get("no_valid_proposals", 0)),
         no_valid_rollouts=int(result.stats.get("no_valid_rollouts", 0)),
+        no_reachable_rollouts=int(result.stats.get("no_reachable_rollouts", 0)),
     )
 
 
@@ -294,6 +297,12 @@ class HarnessResult:
                     # The same share before the widened draw: dropout rollouts alone.
                     "no_valid_rollout_share": _share(
                         sum(r.no_valid_rollouts for r in counted),
+                        sum(r.proposal_steps for r in counted),
+                    ),
+                    # Valid proposals, but none joined to the tree by a valid edge (the
+                    # planner then draws a widened set for one that is).
+                    "no_reachable_proposal_share": _share(
+                        sum(r.no_reachable_rollouts for r in counted),
                         sum(r.proposal_steps for r in counted),
                     ),
                 }

@@ -242,3 +242,36 @@ def test_the_planner_runs_torch_on_its_own_threads_and_restores_them(
         torch.set_num_threads(before)
     with pytest.raises(PlanningError, match="threads >= 0"):
         NeuralPlanner("x", Straight(), threads=-1)
+
+
+class _WallAhead:
+    """A checker stub: every configuration is valid, and an edge from q is valid only where it
+    turns joint 1 by more than 0.1 rad (a wall straight ahead in joint space)."""
+
+    def __init__(self, robot: RobotModel) -> None:
+        self.robot = robot
+
+    def config_valid(self, Q: np.ndarray) -> np.ndarray:
+        return np.ones(len(Q), bool)
+
+    def edges_valid(self, Q0: np.ndarray, Q1: np.ndarray) -> np.ndarray:
+        return np.abs(Q1[:, 1] - Q0[:, 1]) > 0.1
+
+
+@pytest.mark.parametrize("widen_blocked", [True, False])
+def test_valid_rollouts_cut_off_by_a_wall_are_widened_into_reachable_ones(
+    robot: RobotModel, widen_blocked: bool
+) -> None:
+    from planning.neural_planner import _Run
+
+    q = robot.named_configuration("home")
+    target = q + np.array([0.6, 0.0, 0.0, 0.0, 0.0, 0.0])
+    planner = NeuralPlanner("straight", Straight(noise=0.0), widen_blocked=widen_blocked)
+    checker: Any = _WallAhead(robot)
+    run = _Run(planner, planner.sampler_for(robot), checker, np.inf, np.random.default_rng(0))
+    node = run.propose(q, target)
+    assert node is not None and run.stats["no_reachable_rollouts"] == 1
+    assert np.linalg.norm(node - q) <= 0.3 + 1e-9  # one step at most
+    # Widened: a node the tree reaches by a valid edge. Not widened: the straight rollout,
+    # whose blocked edge is left to replanning.
+    assert bool(abs(node[1] - q[1]) > 0.1) is widen_blocked
