@@ -275,3 +275,66 @@ def test_valid_rollouts_cut_off_by_a_wall_are_widened_into_reachable_ones(
     # Widened: a node the tree reaches by a valid edge. Not widened: the straight rollout,
     # whose blocked edge is left to replanning.
     assert bool(abs(node[1] - q[1]) > 0.1) is widen_blocked
+
+
+class _Pocket(_WallAhead):
+    """A checker stub: only configurations within 0.1 rad of ``centre`` are valid (a tight
+    spot), and every edge between valid ones is."""
+
+    def __init__(self, robot: RobotModel, centre: np.ndarray) -> None:
+        super().__init__(robot)
+        self.centre = centre
+
+    def config_valid(self, Q: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(Q - self.centre, axis=1) < 0.1
+
+    def edges_valid(self, Q0: np.ndarray, Q1: np.ndarray) -> np.ndarray:
+        return self.config_valid(Q0) & self.config_valid(Q1)
+
+
+def test_in_a_tight_spot_the_widened_draw_shrinks_to_a_short_free_step(robot: RobotModel) -> None:
+    from planning.neural_planner import _Run
+
+    q = robot.named_configuration("home")
+    target = q + np.array([0.6, 0.0, 0.0, 0.0, 0.0, 0.0])
+    planner = NeuralPlanner("straight", Straight(noise=0.0))
+    checker: Any = _Pocket(robot, q)
+    run = _Run(planner, planner.sampler_for(robot), checker, np.inf, np.random.default_rng(0))
+    node = run.propose(q, target)
+    # Every rollout and the full widened draw leave the pocket; a quarter of it stays inside.
+    assert run.stats["no_valid_rollouts"] == 1 and run.stats["no_valid_proposals"] == 0
+    assert node is not None and 0 < np.linalg.norm(node - q) < 0.1
+
+
+class _Away(Straight):
+    """Steps 0.02 rad straight away from the target (so the gap between the trees' ends
+    only grows), and records each target."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.targets: list[np.ndarray] = []
+
+    def sample(self, scene: Any, q: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
+        self.targets.append(goal.copy())
+        away = q - 0.02 * (goal - q) / np.linalg.norm(goal - q)
+        return np.repeat(away[None], n, axis=0)
+
+
+@pytest.mark.parametrize("stall_steps", [4, 0])
+def test_trees_whose_ends_stall_aim_at_the_other_root(
+    robot: RobotModel, spheres: SphereModel, box: Any, stall_steps: int
+) -> None:
+    checker = _checker(robot, spheres, box)
+    away = _Away()
+    planner = NeuralPlanner("away", away, max_steps=12, stall_steps=stall_steps)
+    res = planner.plan(checker, box.start, box.goal, budget_s=60.0, rng=np.random.default_rng(0))
+    assert res.status is PlanStatus.FAILED and len(away.targets) == 12
+    at_root = [any(np.array_equal(t, end) for end in (box.start, box.goal)) for t in away.targets]
+    # Step 0 aims at the goal, the other tree's end and root; then each step aims at the other
+    # tree's moved end, until the gap has not shrunk for ``stall_steps`` steps.
+    if stall_steps:
+        assert at_root == [True] + [False] * 4 + [True] * 7
+        assert res.stats["stalled_steps"] == 7
+    else:
+        assert at_root == [True] + [False] * 11
+        assert res.stats["stalled_steps"] == 0
