@@ -176,6 +176,8 @@ def test_bad_endpoints_are_a_status_and_bad_settings_an_error(
         planner.plan(checker, box.start, box.goal, budget_s=0.0, rng=rng)
     with pytest.raises(PlanningError, match="restart_iterations >= 1"):
         NeuralPlanner("x", Straight(), mode="hybrid", restart_iterations=0)
+    with pytest.raises(PlanningError, match=r"stall_steps >= 0; got .* -1$"):
+        NeuralPlanner("x", Straight(), stall_steps=-1)
 
 
 def test_the_fallback_restarts_rrt_connect_in_growing_slices(
