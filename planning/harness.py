@@ -95,7 +95,7 @@ class RunRecord:
     proposal_steps: int = 0
     no_valid_proposals: int = 0
     no_valid_rollouts: int = 0
-    no_reachable_rollouts: int = 0
+    no_reachable_proposals: int = 0
 
 
 # -- worker side -------------------------------------------------------------------------
@@ -183,7 +183,7 @@ def _run(
         proposal_steps=int(result.stats.get("proposal_steps", 0)),
         no_valid_proposals=int(result.stats.get("no_valid_proposals", 0)),
         no_valid_rollouts=int(result.stats.get("no_valid_rollouts", 0)),
-        no_reachable_rollouts=int(result.stats.get("no_reachable_rollouts", 0)),
+        no_reachable_proposals=int(result.stats.get("no_reachable_proposals", 0)),
     )
 
 
@@ -302,7 +302,7 @@ class HarnessResult:
                     # Valid proposals, but none joined to the tree by a valid edge (the
                     # planner then draws a widened set for one that is).
                     "no_reachable_proposal_share": _share(
-                        sum(r.no_reachable_rollouts for r in counted),
+                        sum(r.no_reachable_proposals for r in counted),
                         sum(r.proposal_steps for r in counted),
                     ),
                 }

@@ -210,7 +210,7 @@ class _Run:
             "proposal_steps": 0,
             "no_valid_rollouts": 0,  # steps where no dropout rollout was valid
             "no_valid_proposals": 0,  # ... nor any of the widened draw (when there is one)
-            "no_reachable_rollouts": 0,  # valid proposals, none joined to q by a valid edge
+            "no_reachable_proposals": 0,  # valid proposals, none joined to q by a valid edge
             "stalled_steps": 0,  # steps aimed at the other tree's root (see bidirectional)
             "neural_replans": 0,
             "fallback_segments": 0,
@@ -292,11 +292,10 @@ class _Run:
 
         With ``widen_blocked``, a widened draw (around the proposals so far) is also made when
         some proposals are valid but no valid edge joins any of them to ``q``, and its
-        reachable proposals are taken. Without
-        it, the tree took such a node anyway, the edge to it was left to replanning, and
-        replanning a short blocked edge asks the network for the same few steps again: the
-        edge still collided after the last round on 23 of GAIDE's 31 failures on Shelf III
-        (200 test problems). On the validation split (100 problems a family) paper-mode
+        reachable proposals are taken. Without it, the tree took such a node anyway, the edge
+        to it was left to replanning, and replanning a short blocked edge asks the network
+        for the same few steps again: the edge still collided after the last round on 23 of
+        GAIDE's 31 failures on Shelf III (200 test problems). On the validation split (100 problems a family) paper-mode
         success went from 87.0 / 85.8 / 88.3% to 95.0 / 94.5 / 95.0% for GAIDE / MPNet /
         SIMPNet (docs/results.md, "Valid nodes that the tree cannot reach")."""
         self._tick()
@@ -315,7 +314,7 @@ class _Run:
         cands = cands[ok]
         reach = self._reach(q, cands)
         if not reach.any():
-            self.stats["no_reachable_rollouts"] += 1
+            self.stats["no_reachable_proposals"] += 1
         if not reach.any() and self.p.widen > 0 and self.p.widen_blocked:
             wide = self._widened(q, drawn)
             wide = wide[self.checker.config_valid(wide)]

@@ -272,7 +272,7 @@ def test_valid_rollouts_cut_off_by_a_wall_are_widened_into_reachable_ones(
     checker: Any = _WallAhead(robot)
     run = _Run(planner, planner.sampler_for(robot), checker, np.inf, np.random.default_rng(0))
     node = run.propose(q, target)
-    assert node is not None and run.stats["no_reachable_rollouts"] == 1
+    assert node is not None and run.stats["no_reachable_proposals"] == 1
     assert np.linalg.norm(node - q) <= 0.3 + 1e-9  # one step at most
     # Widened: a node the tree reaches by a valid edge. Not widened: the straight rollout,
     # whose blocked edge is left to replanning.
