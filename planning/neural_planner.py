@@ -37,8 +37,11 @@ MODES = ("paper", "hybrid")
 # the path's own nodes cannot (corners inside an edge, the fallback's detours). On 12 balanced
 # test problems per family (shipped weights), median cost TableTop..Shelf III went from
 # 5.88/4.66/4.43/7.66/6.13/7.20 rad (none) to 5.53/4.65/4.43/5.48/5.85/5.89 (32) and
-# 5.51/4.65/4.43/5.31/5.85/5.73 (96), with median planning times unchanged within noise.
-HYBRID_SHORTCUTS = 96
+# 5.51/4.65/4.43/5.31/5.85/5.73 (96). On the validation split (100 problems a family), 384
+# against 96 lowered the mean cost of every family by 0.15-1.9% (Shelf II 6.03 -> 5.91 rad) and
+# left fewer paths longer than rrtc's (88 -> 70 of 600), for up to 22% more median planning time
+# (docs/results.md, "More shortcut attempts in hybrid mode").
+HYBRID_SHORTCUTS = 384
 SCENE_POINTS = 2048
 
 
@@ -87,7 +90,7 @@ class NeuralPlanner:
     :meth:`_Run.bidirectional`);
     ``shortcuts``: random shortcut attempts of the compiled shortcut pass
     (:func:`planning.rrtc.shorten`, after vertex reduction) on a solved path (default 0 in
-    paper mode, which keeps the paper's lazy states contraction alone; 96 in hybrid mode, so
+    paper mode, which keeps the paper's lazy states contraction alone; 384 in hybrid mode, so
     its paths are shortened as far as ``rrtc``'s own);
     ``threads`` torch's intra-op threads while planning (0: torch's setting, untouched). One
     is the default: a step's batch is small, and after Open3D or OpenCV have run in the
