@@ -252,6 +252,44 @@ def _success_by_category(runs: list[RunRecord]) -> dict[str, dict[str, float]]:
     return out
 
 
+#: A path is the shorter of two only when it is shorter by more than this share of the
+#: other's cost (smaller differences are the shortcut pass's rounding, not another route).
+COST_TIE = 1e-3
+
+
+def _paired(a: list[RunRecord], b: list[RunRecord]) -> dict[str, Any]:
+    """Two planners' runs of one family, paired by problem: the problems only one of them
+    solved, and among those both solved, the problems where one's path is the shorter. Each
+    split comes with its exact two-sided sign-test p-value (for success, McNemar's exact
+    test): how likely a split at least as uneven is if the two were alike."""
+    from scipy.stats import binomtest
+
+    def p_value(x: int, y: int) -> float:
+        return float(binomtest(x, x + y).pvalue) if x + y else 1.0
+
+    runs_b = {r.problem: r for r in b}
+    pairs = [(r, runs_b[r.problem]) for r in a if r.problem in runs_b]
+    a_only = sum(ra.success and not rb.success for ra, rb in pairs)
+    b_only = sum(rb.success and not ra.success for ra, rb in pairs)
+    both = [
+        (ra.cost, rb.cost)
+        for ra, rb in pairs
+        if ra.success and rb.success and ra.cost is not None and rb.cost is not None
+    ]
+    a_shorter = sum(ca < cb * (1 - COST_TIE) for ca, cb in both)
+    b_shorter = sum(cb < ca * (1 - COST_TIE) for ca, cb in both)
+    return {
+        "problems": len(pairs),
+        "a_only": a_only,
+        "b_only": b_only,
+        "success_p": p_value(a_only, b_only),
+        "both": len(both),
+        "a_shorter": a_shorter,
+        "b_shorter": b_shorter,
+        "cost_p": p_value(a_shorter, b_shorter),
+    }
+
+
 @dataclass
 class HarnessResult:
     cfg: HarnessCfg
@@ -321,6 +359,29 @@ class HarnessResult:
             out[planner] = _success_by_category(runs)
         return out
 
+    def paired(self) -> dict[str, dict[str, dict[str, Any]]]:
+        """{family: {"A vs B": figures}} for every two planners, in the order asked for, on
+        the problems both ran (see :func:`_paired`; "a" is A, "b" is B). Success rates of
+        50 problems differ by a few problems between planners that are alike, so this says
+        whether a difference in a table is more than the sample's."""
+        counted = [
+            r
+            for r in self.records
+            if r.status not in (PlanStatus.START_INVALID.value, PlanStatus.GOAL_INVALID.value)
+        ]
+        ran = {r.planner for r in counted}
+        planners = [p for p in self.cfg.planners if p in ran]
+        out: dict[str, dict[str, dict[str, Any]]] = {}
+        for fam in dict.fromkeys(r.family for r in counted):
+            runs = {p: [r for r in counted if r.family == fam and r.planner == p] for p in planners}
+            out[fam] = {
+                f"{a} vs {b}": _paired(runs[a], runs[b])
+                for i, a in enumerate(planners)
+                for b in planners[i + 1 :]
+                if runs[a] and runs[b]
+            }
+        return out
+
     def figures(self) -> dict[str, Any]:
         planner_s = sum(r.time_s for r in self.records)
         overhead_s = sum(r.overhead_s for r in self.records)
@@ -338,6 +399,7 @@ class HarnessResult:
         return {
             "results": self.summary(),
             "by_category": self.by_category(),
+            "paired": self.paired(),
             "figures": self.figures(),
             "budgets": self.budgets,
             "notes": self.notes,

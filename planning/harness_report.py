@@ -1,5 +1,6 @@
 """The harness's results as the paper shows them: Table I (T, C, S per family and planner),
-a Markdown table, and a plot of success, time and cost per family."""
+a Markdown table, and a plot of success, time and cost per family; success per category, and
+every two planners compared problem by problem."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 
 from gaide_core.atomic import write_file_atomic
 from gaide_core.errors import PlanningError
-from planning.harness import HarnessResult
+from planning.harness import COST_TIE, HarnessResult
 
 LABELS = {
     "tabletop": "TableTop", "box": "Box", "bins": "Bins",
@@ -119,4 +120,37 @@ def category_table(result: HarnessResult) -> str:
         + " |"
         for p, per in cats.items()
     ]
+    return "\n".join([head, rule, *rows])
+
+
+PAIRED_LEGEND = (
+    "two planners, problem by problem: S, the problems only the first / only the second "
+    f"solved; C, of those both solved, where the first's / the second's path is shorter by "
+    f"more than {100 * COST_TIE:g}%; p, the exact sign test's chance of a split at least as "
+    "uneven between planners that are alike"
+)
+
+
+def paired_table(result: HarnessResult) -> str:
+    """Every two planners, problem by problem, as Markdown: per family, the problems only the
+    first / only the second solved and the exact McNemar p-value, then among the problems
+    both solved, those where the first's / the second's path is the shorter, and the
+    sign test's p-value."""
+    paired = result.paired()
+    families = list(paired)
+    pairs = list(dict.fromkeys(k for per in paired.values() for k in per))
+    head = "| planners | " + " | ".join(LABELS.get(f, f) for f in families) + " |"
+    rule = "|---|" + "---|" * len(families)
+    rows = []
+    for pair in pairs:
+        cells = []
+        for f in families:
+            d = paired[f].get(pair)
+            cells.append(
+                "-"
+                if d is None
+                else f"S {d['a_only']} / {d['b_only']} (p {d['success_p']:.2f}), "
+                f"C {d['a_shorter']} / {d['b_shorter']} (p {d['cost_p']:.2f})"
+            )
+        rows.append(f"| {pair} | " + " | ".join(cells) + " |")
     return "\n".join([head, rule, *rows])

@@ -223,7 +223,14 @@ def cmd_planning(args: argparse.Namespace) -> int:
     from gaide_core.errors import PlanningError
     from planning.family_names import parse_families
     from planning.harness import HarnessCfg, run_harness
-    from planning.harness_report import category_table, markdown_table, plot, text_table
+    from planning.harness_report import (
+        PAIRED_LEGEND,
+        category_table,
+        markdown_table,
+        paired_table,
+        plot,
+        text_table,
+    )
     from planning.registry import parse_planners
 
     if args.budget == "auto":
@@ -252,6 +259,9 @@ def cmd_planning(args: argparse.Namespace) -> int:
     print(text_table(result))
     print("\nsuccess per category (all families):")
     print(category_table(result))
+    if len(cfg.planners) > 1:
+        print(f"\n{PAIRED_LEGEND}:")
+        print(paired_table(result))
     fig = result.figures()
     print(
         f"\n{fig['runs']} runs in {fig['wall_s']:.1f} s wall; planners {fig['planner_s']:.1f} s, "
@@ -264,6 +274,8 @@ def cmd_planning(args: argparse.Namespace) -> int:
         out = Path(args.json)
         write_json(out, result.to_json())
         md = markdown_table(result) + "\n\nSuccess per category:\n\n" + category_table(result)
+        if len(cfg.planners) > 1:
+            md += f"\n\n{PAIRED_LEGEND[0].upper()}{PAIRED_LEGEND[1:]}:\n\n{paired_table(result)}"
         write_bytes_atomic(out.with_suffix(".md"), (md + "\n").encode(), ExecutionError)
         plot(result, out.with_suffix(".png"))
         print(f"wrote {out}, {out.with_suffix('.md')}, {out.with_suffix('.png')}")

@@ -155,7 +155,7 @@ def test_cli_bench_planning_and_bad_names(tmp_path: Path) -> None:
         "--families",
         "box",
         "--planners",
-        "rrtconnect",
+        "rrtconnect,rrtc",
         "--problems",
         "1",
         "--budget",
@@ -166,7 +166,10 @@ def test_cli_bench_planning_and_bad_names(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     data = json.loads(out.read_text())
     assert 0.0 <= data["results"]["box"]["rrtconnect"]["success_rate"] <= 1.0
-    assert out.with_suffix(".md").exists() and out.with_suffix(".png").stat().st_size > 5000
+    assert data["paired"]["box"]["rrtconnect vs rrtc"]["problems"] == 1
+    assert out.with_suffix(".png").stat().st_size > 5000
+    for text in (proc.stdout, out.with_suffix(".md").read_text()):
+        assert "problem by problem" in text and "| rrtconnect vs rrtc | S " in text
     proc = run_cli("bench", "planning", "--families", "kitchen")
     assert proc.returncode == 7 and "valid: ['tabletop'" in proc.stderr
     proc = run_cli("bench", "planning", "--planners", "rrt-connect")
@@ -247,3 +250,36 @@ def test_results_do_not_depend_on_the_worker_count() -> None:
     one, two = records(1), records(2)
     assert len(one) == 6 and all(status == "success" for _, _, status, _ in one)
     assert one == two
+
+
+def test_two_planners_are_compared_problem_by_problem_with_exact_p_values() -> None:
+    """Made-up records of two planners, A (rrtc) and B (rrtconnect): A solves 10 problems, B
+    the same 10 but one and 5 more; of the 9 both solved, A's path is shorter on 7, B's on
+    one, and one differs by less than the tie.
+    The splits 1 / 5 and 7 / 1 get the exact two-sided sign test's p-values (binomial,
+    1/2): 2 * (1 + 6) / 64 and 2 * (1 + 8) / 256."""
+    from planning.harness import HarnessResult, RunRecord
+    from planning.harness_report import paired_table
+
+    def run(planner: str, i: int, ok: bool, cost: float | None = None) -> RunRecord:
+        return RunRecord(
+            "bins", f"bins-{i}", i, "free2free", planner, "success" if ok else "failed",
+            ok, 0.01, cost if ok else None, 5.0,
+        )  # fmt: skip
+
+    a_costs = [1.0] * 6 + [1.0, 1.0, 2.0, 1.0]  # problem 9: only A solves it
+    b_costs = [1.5] * 6 + [1.5, 1.0005, 1.0, 0.0]
+    records = [run("rrtc", i, True, c) for i, c in enumerate(a_costs)]
+    records += [run("rrtconnect", i, i != 9, c) for i, c in enumerate(b_costs)]
+    records += [run("rrtc", i, False) for i in range(10, 15)]
+    records += [run("rrtconnect", i, True, 3.0) for i in range(10, 15)]
+    records += [run("rrtc", 15, False)]  # B never ran problem 15: not paired
+    cfg = HarnessCfg(families=("bins",), planners=("rrtc", "rrtconnect"), workers=1)
+    result = HarnessResult(cfg, records, {}, 1.0, [])
+    d = result.paired()["bins"]["rrtc vs rrtconnect"]
+    assert (d["problems"], d["a_only"], d["b_only"]) == (15, 1, 5)
+    assert d["success_p"] == pytest.approx(2 * 7 / 64)
+    assert (d["both"], d["a_shorter"], d["b_shorter"]) == (9, 7, 1)
+    assert d["cost_p"] == pytest.approx(2 * 9 / 256)
+    assert "| rrtc vs rrtconnect | S 1 / 5 (p 0.22), C 7 / 1 (p 0.07) |" in paired_table(result)
+    assert result.to_json()["paired"]["bins"]["rrtc vs rrtconnect"] == d
