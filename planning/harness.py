@@ -252,6 +252,15 @@ def _success_by_category(runs: list[RunRecord]) -> dict[str, dict[str, float]]:
     return out
 
 
+_BAD_PROBLEM = (PlanStatus.START_INVALID.value, PlanStatus.GOAL_INVALID.value)
+
+
+def _posed(runs: list[RunRecord]) -> list[RunRecord]:
+    """The runs of well-posed problems (a start or goal in collision is the problem's fault,
+    not the planner's: not counted)."""
+    return [r for r in runs if r.status not in _BAD_PROBLEM]
+
+
 #: A path is the shorter of two only when it is shorter by more than this share of the
 #: other's cost (smaller differences are the shortcut pass's rounding, not another route).
 COST_TIE = 1e-3
@@ -306,12 +315,8 @@ class HarnessResult:
         for fam, per in out.items():
             for planner in per:
                 runs = [r for r in self.records if r.family == fam and r.planner == planner]
-                bad = [
-                    r
-                    for r in runs
-                    if r.status in (PlanStatus.START_INVALID.value, PlanStatus.GOAL_INVALID.value)
-                ]
-                counted = [r for r in runs if r not in bad]
+                counted = _posed(runs)
+                bad = [r for r in runs if r.status in _BAD_PROBLEM]
                 times = np.array([r.time_s for r in counted]) if counted else np.zeros(0)
                 costs = np.array([r.cost for r in counted if r.success and r.cost is not None])
                 per[planner] = {
@@ -350,12 +355,7 @@ class HarnessResult:
         """{planner: {category: success rate over every family, and the count}}."""
         out: dict[str, dict[str, Any]] = {}
         for planner in dict.fromkeys(r.planner for r in self.records):
-            runs = [
-                r
-                for r in self.records
-                if r.planner == planner
-                and r.status not in (PlanStatus.START_INVALID.value, PlanStatus.GOAL_INVALID.value)
-            ]
+            runs = [r for r in _posed(self.records) if r.planner == planner]
             out[planner] = _success_by_category(runs)
         return out
 
@@ -364,11 +364,7 @@ class HarnessResult:
         the problems both ran (see :func:`_paired`; "a" is A, "b" is B). Success rates of
         50 problems differ by a few problems between planners that are alike, so this says
         whether a difference in a table is more than the sample's."""
-        counted = [
-            r
-            for r in self.records
-            if r.status not in (PlanStatus.START_INVALID.value, PlanStatus.GOAL_INVALID.value)
-        ]
+        counted = _posed(self.records)
         ran = {r.planner for r in counted}
         planners = [p for p in self.cfg.planners if p in ran]
         out: dict[str, dict[str, dict[str, Any]]] = {}
