@@ -54,6 +54,11 @@ RETRAINED = (
         ("weights-train50k-band-shelves2", "train50k-band", 50398, kind, 5000)
         for kind in MODEL_KINDS
     ]
+    + [
+        (f"weights-train50k-band-seed{seed}", "train50k-band", 50398, kind, 5000)
+        for seed in (1, 2)
+        for kind in ("gaide", "simpnet")
+    ]
 )
 
 
