@@ -66,6 +66,7 @@ class CloudWorld:
         if voxel <= 0 or band <= voxel:
             raise PlanningError(f"need 0 < voxel < band (m), got voxel={voxel}, band={band}")
         self.points = pts
+        self._tree: cKDTree | None = None  # for exact_distance, built on first use
         self.voxel = float(voxel)
         self.band = float(band)
         pad = band + voxel
@@ -100,6 +101,14 @@ class CloudWorld:
         self._inv_voxel = 1.0 / voxel
         self._origin_scaled = self.origin / voxel
         log.debug("cloud world: %d points, lattice %s, %d exact", len(pts), self.shape, len(near))
+
+    def exact_distance(self, points: Array) -> Array:
+        """The distance (N,) m from points (N, 3) to the nearest cloud point: the truth that
+        :meth:`distance` bounds from below, by a k-d tree (scipy's; built on first use).
+        For reports, not for checks: a query costs a tree search, not a look-up."""
+        if self._tree is None:
+            self._tree = cKDTree(self.points)
+        return np.asarray(self._tree.query(np.asarray(points, float).reshape(-1, 3))[0])
 
     @property
     def exact_up_to(self) -> float:

@@ -94,3 +94,31 @@ def test_another_robots_trajectory_is_refused(
     )
     with pytest.raises(ExecutionError, match="not the robot's"):
         simulate(other, robot)
+
+
+def test_on_a_cloud_the_reports_take_the_true_distance_where_the_lookup_refuses(
+    robot: RobotModel, spheres: SphereModel, free_checker: CollisionChecker
+) -> None:
+    """A one-point cloud 2 mm beyond the margin of the outermost sphere, on a coarse lattice:
+    the checker's look-up (a lower bound) refuses the configuration, the true distance keeps
+    the margin, and the report goes by the truth; 2 mm inside the margin, it is invalid."""
+    from execution.simulate import report_validity
+    from planning.distance_field import CloudWorld
+
+    q = np.array([0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0])[None]
+    centres = free_checker.sphere_centers(q)[0]
+    far = CloudWorld(centres.mean(axis=0)[None] + 1.0, voxel=0.04, band=0.3)
+    checked = np.isfinite(make_checker(robot, spheres, far).sphere_clearance(q)[0])
+    away = np.linalg.norm(centres - centres.mean(axis=0), axis=1)
+    s = int(np.argmax(np.where(checked, away, -np.inf)))
+    out = (centres[s] - centres.mean(axis=0)) / away[s]
+    for beyond, valid in ((0.002, True), (-0.002, False)):
+        point = centres[s] + out * (free_checker.world_radii[s] + free_checker.margin + beyond)
+        checker = make_checker(robot, spheres, CloudWorld(point[None], voxel=0.04, band=0.3))
+        truth = np.min(
+            np.linalg.norm(centres[checked] - point, axis=1) - checker.world_radii[checked]
+        )
+        assert truth == pytest.approx(checker.margin + beyond)  # the outermost sphere is nearest
+        assert not checker.config_valid(q)[0]  # the look-up refuses both
+        ok, clearance = report_validity(checker, q)
+        assert ok[0] == valid and clearance[0] == pytest.approx(truth)

@@ -72,6 +72,7 @@ def test_run_writes_every_stage_output_and_a_summary(run_out: tuple[Path, str]) 
     assert st["timing"]["figures"]["limit_violations"] == 0
     sim = st["simulation"]["figures"]
     assert sim["tracking_rms_after_delay_rad"] < 0.01 and sim["tracking_rms_rad"] < 0.05
+    assert sim["precheck_invalid_samples"] == 0 and sim["executed_clearance_ok"] is True
     # the summary table names each figure and where each file is
     for text in ("RMS", "points", "attempt", "rad", "Hz", "tracking", str(out / "report.html")):
         assert text in stdout, text
@@ -265,6 +266,11 @@ def test_demo_runs_cold_on_the_shipped_bag(tmp_path: Path) -> None:
     # the demo's goal is not reachable in a straight joint-space line
     assert not st["planning"]["figures"]["direct_edge_valid"]
     assert st["calibration"]["figures"]["reprojection_rms_px"] < 0.5
+    # The certified path keeps the margin in the cloud's true distances, and the simulation's
+    # report says so: the lattice's lower bound alone read 4 of its samples inside the margin
+    # and the executed clearance as 4.0 mm (simulate.report_validity).
+    sim = st["simulation"]["figures"]
+    assert sim["precheck_invalid_samples"] == 0 and sim["executed_clearance_ok"] is True
     page = (out / "report.html").read_text()
     assert all(name in page for name in PICTURES)
     assert not _leftovers(out)
