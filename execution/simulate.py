@@ -53,8 +53,8 @@ from execution.trajectory import TimedTrajectory
 from gaide_core.errors import ExecutionError
 from gaide_core.joints import JointStates
 from gaide_core.types import Array
+from planning.checker import true_sphere_clearance
 from planning.collision import CollisionChecker, Mask
-from planning.distance_field import CloudWorld
 from planning.primitives import PrimitiveWorld
 from planning.robot_model import RobotModel
 
@@ -64,25 +64,15 @@ _MAX_EXTENSIONS = 8
 
 def report_validity(checker: CollisionChecker, Q: Array) -> tuple[Mask, Array]:
     """Validity (B,) and smallest world clearance (B,) m of configurations Q (B, dof), as the
-    reports give them.
-
-    On a cloud world the checker's look-up is a lower bound on the distance, up to voxel *
-    sqrt(3) below it (:mod:`planning.distance_field`), while the certificate of the edges that
-    planners and timing produce keeps the *true* distance above the margin
-    (:mod:`planning.collision`): a configuration on a certified edge can read as inside the
-    margin (measured on ``gaide demo``'s path: 20 of 2,000 samples of a certified edge at 4.0
-    mm against a 5 mm margin, the true clearance there at least 14.7 mm). So on a cloud the
-    clearance is the true one, and a configuration the checker refuses is invalid only when
-    its true clearance is below the margin or it is invalid for another reason (limits,
-    self-collision). On primitives the checker's distances are exact and its verdict stands."""
+    reports give them: the clearance is the true one
+    (:func:`planning.checker.true_sphere_clearance`), and a configuration the checker refuses
+    is invalid only when that clearance is below the margin or it is invalid for another
+    reason (limits, self-collision). On a cloud world the checker's look-up, a lower bound,
+    can read a configuration on a certified edge as inside the margin (measured on ``gaide
+    demo``'s path: 20 of 2,000 samples of a certified edge at 4.0 mm against a 5 mm margin,
+    the true clearance there at least 14.7 mm); on primitives nothing changes."""
     ok = checker.config_valid(Q)
-    world = checker.world
-    if not isinstance(world, CloudWorld):
-        return ok, checker.world_clearance(Q)
-    checked = np.isfinite(checker.sphere_clearance(Q[:1])[0])  # the world-checked spheres
-    centres = checker.sphere_centers(Q)[:, checked]
-    distance = world.exact_distance(centres.reshape(-1, 3)).reshape(centres.shape[:2])
-    clearance = (distance - checker.world_radii[checked]).min(axis=1)
+    clearance = true_sphere_clearance(checker, Q).min(axis=1)
     for i in np.flatnonzero(~ok):
         why = checker.diagnose(Q[i])
         ok[i] = not (why.outside_limits or why.self_contacts) and clearance[i] >= checker.margin

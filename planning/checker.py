@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from gaide_core.errors import ConfigError
 
 if TYPE_CHECKING:  # the checkers load Pinocchio and numba; the names here stay light
+    from gaide_core.types import Array
     from planning.collision import CollisionChecker, SphereCollisionChecker
     from planning.robot_model import RobotModel
     from planning.sphere_model import SphereModel
@@ -75,3 +76,26 @@ def endpoint_checker(checker: CollisionChecker) -> CollisionChecker:
         margin=checker.margin + ENDPOINT_SLACK,
         resolution=checker.resolution,
     )
+
+
+def true_sphere_clearance(checker: CollisionChecker, Q: Array) -> Array:
+    """(B, S) distance - radius (m, the world raise included) of each world-checked sphere of
+    configurations Q (B, dof), +inf for the others: the checker's own on primitives, whose
+    distances are exact; on a cloud world the distance to the nearest cloud point, where the
+    checker's look-up is a lower bound up to voxel * sqrt(3) below it and not continuous
+    (:mod:`planning.distance_field`). The certificate of an edge keeps the true clearance
+    above the margin (:mod:`planning.collision`), and reports of a motion go by this."""
+    import numpy as np
+
+    from planning.distance_field import CloudWorld
+
+    bound = checker.sphere_clearance(Q)
+    world = checker.world
+    if not isinstance(world, CloudWorld):
+        return bound
+    checked = np.isfinite(bound[0]) if len(bound) else np.zeros(bound.shape[1], bool)
+    centres = checker.sphere_centers(Q)[:, checked]
+    true = np.full(bound.shape, np.inf)
+    distance = world.exact_distance(centres.reshape(-1, 3)).reshape(centres.shape[:2])
+    true[:, checked] = distance - checker.world_radii[checked]
+    return true
