@@ -73,9 +73,9 @@ def report_validity(checker: CollisionChecker, Q: Array) -> tuple[Mask, Array]:
     the true clearance there at least 14.7 mm); on primitives nothing changes."""
     ok = checker.config_valid(Q)
     clearance = true_sphere_clearance(checker, Q).min(axis=1)
-    for i in np.flatnonzero(~ok):
+    for i in np.flatnonzero(~ok & (clearance >= checker.margin)):  # refused by the bound alone?
         why = checker.diagnose(Q[i])
-        ok[i] = not (why.outside_limits or why.self_contacts) and clearance[i] >= checker.margin
+        ok[i] = not (why.outside_limits or why.self_contacts)
     return ok, clearance
 
 
