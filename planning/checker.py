@@ -89,13 +89,13 @@ def true_sphere_clearance(checker: CollisionChecker, Q: Array) -> Array:
 
     from planning.distance_field import CloudWorld
 
-    bound = checker.sphere_clearance(Q)
     world = checker.world
     if not isinstance(world, CloudWorld):
-        return bound
-    checked = np.isfinite(bound[0]) if len(bound) else np.zeros(bound.shape[1], bool)
-    centres = checker.sphere_centers(Q)[:, checked]
-    true = np.full(bound.shape, np.inf)
-    distance = world.exact_distance(centres.reshape(-1, 3)).reshape(centres.shape[:2])
-    true[:, checked] = distance - checker.world_radii[checked]
+        return checker.sphere_clearance(Q)
+    centres = checker.sphere_centers(Q)
+    # The world-checked spheres are the same for every configuration: ask about one.
+    checked = np.isfinite(checker.sphere_clearance(Q[:1])[0])
+    true = np.full(centres.shape[:2], np.inf)
+    distance = world.exact_distance(centres[:, checked].reshape(-1, 3))
+    true[:, checked] = distance.reshape(len(Q), -1) - checker.world_radii[checked]
     return true
