@@ -55,14 +55,11 @@ class Closest:
 
     sample: int  # index into the motion's samples
     t: float | None  # s; None along an untimed path
-    clearance: float  # m, the checker's (its distance field: a lower bound)
+    clearance: float  # m, true: to the nearest cloud point (or primitive), minus the radius
     centres: Array  # (S, 3) m, every sphere's centre at that sample
     sphere: int  # the closest sphere
     radius: float  # m, its radius
     obstacle: Array  # (3,) m, the cloud point nearest to it
-    # The clearance is where the checker's distances stop (a cloud world's band): the
-    # scene is at least that far from the robot all along, and the sample is arbitrary.
-    capped: bool = False
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -106,7 +103,7 @@ def motion_scene(
     """The scene of the robot moving through ``Q`` (K, dof) rad, sampled at ``times`` (K,)
     s (None: an untimed path), in the cloud ``points`` (N, 3) m that ``checker``'s world
     was built from. The closest approach is searched over (at most
-    :data:`MAX_CLEARANCE_SAMPLES` evenly spaced) samples with ``checker.world_clearance``."""
+    :data:`MAX_CLEARANCE_SAMPLES` evenly spaced) samples (:func:`closest_approach`)."""
     Q = np.asarray(Q, float)
     k = len(Q)
     frame_idx = np.unique(np.round(np.linspace(0, k - 1, min(frames, k))).astype(int))
@@ -127,35 +124,33 @@ def motion_scene(
 def closest_approach(
     checker: CollisionChecker, Q: Array, times: Array | None, points: Array
 ) -> Closest | None:
-    """The sample of ``Q`` (K, dof) with the smallest world clearance, its closest sphere
-    and the cloud point (of ``points`` (N, 3), the world's) nearest to that sphere; None
-    when the world is empty."""
+    """The sample of ``Q`` (K, dof) with the smallest true world clearance
+    (:func:`planning.checker.true_sphere_clearance`: on a cloud the distance to its nearest
+    point, not the checker's lattice look-up, which is a lower bound), its closest sphere and
+    the cloud point (of ``points`` (N, 3), the world's) nearest to that sphere; None when the
+    world is empty."""
     from scipy.spatial import cKDTree
+
+    from planning.checker import true_sphere_clearance
 
     stride = max(1, -(-len(Q) // MAX_CLEARANCE_SAMPLES))
     idx = np.arange(0, len(Q), stride)
-    clearance = checker.world_clearance(Q[idx])
-    best = int(np.argmin(clearance))
-    value = float(clearance[best])
+    clearance = true_sphere_clearance(checker, Q[idx])  # (B, S), +inf: not world-checked
+    best, sphere = np.unravel_index(int(np.argmin(clearance)), clearance.shape)
+    value = float(clearance[best, sphere])
     if not np.isfinite(value):
         return None
     sample = int(idx[best])
     centres = checker.sphere_centers(Q[sample : sample + 1])[0]
-    radii = np.asarray(checker.radii, float)
-    # The checker skips some spheres (e.g. the base's, resting on the table): the closest
-    # one is the sphere whose own clearance is the minimum it reported.
-    own = checker.world.distance(centres) - radii
-    sphere = int(np.argmin(np.abs(own - value)))
     _, nearest = cKDTree(points).query(centres[sphere])
     return Closest(
         sample=sample,
         t=None if times is None else float(times[sample]),
         clearance=value,
         centres=centres,
-        sphere=sphere,
-        radius=float(radii[sphere]),
+        sphere=int(sphere),
+        radius=float(np.asarray(checker.radii, float)[sphere]),
         obstacle=np.asarray(points[int(nearest)], float),
-        capped=value + radii[sphere] >= getattr(checker.world, "exact_up_to", np.inf),
     )
 
 
@@ -423,8 +418,6 @@ def _closest(scene: Scene3D, count: int) -> list[dict[str, Any]]:
     surface = centre + towards / max(float(np.linalg.norm(towards)), 1e-12) * c.radius
     when = f" at t = {c.t:.2f} s" if c.t is not None else ""
     label = f"closest: {_mm(c.clearance)}{when}"
-    if c.capped:
-        label = f"clearance over {_mm(c.clearance)} all along (the checker's range)"
     exact = float(np.linalg.norm(towards)) - c.radius
     mesh = spheres_mesh(c.centres, scene.radii)
     return [
@@ -448,8 +441,7 @@ def _closest(scene: Scene3D, count: int) -> list[dict[str, Any]]:
             "marker": {"size": 5, "color": "#b00020"},
             "hovertext": [
                 f"sphere {c.sphere} (r = {_mm(c.radius)}), its surface",
-                f"clearance {_mm(c.clearance)} (the checker's distance field, a lower "
-                f"bound); {_mm(exact)} to this cloud point",
+                f"the nearest cloud point, {_mm(exact)} from the sphere's surface",
             ],
             "hoverinfo": "text",
         },
