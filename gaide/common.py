@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from gaide_core.atomic import write_bytes_atomic
 from gaide_core.errors import ExecutionError
 from planning.checker import CHECKERS, DEFAULT_CHECKER
+from planning.robot_names import shipped_robots
 
 if TYPE_CHECKING:
     from planning.robot_model import RobotModel
@@ -24,6 +25,7 @@ T = TypeVar("T")
 __all__ = [
     "JobProgress",
     "add_checker_option",
+    "add_robot_option",
     "print_table",
     "progress",
     "robot_and_spheres",
@@ -109,6 +111,16 @@ def seed(text: str) -> int:
             f"invalid seed {text!r}: give a whole number from 0 to 2^63 - 1"
         )
     return value
+
+
+def add_robot_option(parser: argparse.ArgumentParser, what: str = "") -> None:
+    """``--robot``: a robot config YAML, or a shipped robot's name (``panda``);
+    ``what`` says what the robot is for, where that needs saying."""
+    names = ", ".join(shipped_robots())
+    parser.add_argument(
+        "--robot",
+        help=f"robot config YAML{what}, or a shipped robot: {names} (default: ur5)",
+    )
 
 
 def add_checker_option(parser: argparse.ArgumentParser) -> None:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from gaide.commands.run import add_setting_flags, cfg_from_args, run_with_bars
 from gaide.pipeline.config_io import DATA
+from planning.robot_names import DEFAULT_CONFIG, resolve_robot_config
 
 BAGS = Path(__file__).resolve().parents[1] / "bags"
 SAMPLE_BAG = BAGS / "sample_workcell.bag"
@@ -46,9 +47,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     args.bag = args.bag or str(SAMPLE_BAG)
     if args.target_pose is None and args.calib is None and args.T_base_cam is None:
         args.target_pose = str(SAMPLE_TARGET)
-    from planning.robot_config import DEFAULT_CONFIG  # after --help (it loads scipy)
-
-    if args.robot is not None and Path(args.robot).resolve() != DEFAULT_CONFIG.resolve():
+    robot = resolve_robot_config(args.robot)
+    if args.robot is not None and robot.resolve() != DEFAULT_CONFIG.resolve():
         # The bag records a UR5: another arm stands in its place, the UR5's points are
         # removed with its recorded joints, and the new arm starts at its home.
         args.set = [f"perception.bag_robot={DEFAULT_CONFIG}", *args.set]

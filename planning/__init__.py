@@ -34,6 +34,7 @@ __all__ = [
     "registry",
     "robot_config",
     "robot_model",
+    "robot_names",
     "robot_setup",
     "rrtc",
     "scene_views",

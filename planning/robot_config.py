@@ -17,8 +17,7 @@ from gaide_core.errors import ConfigError
 from gaide_core.text_io import load_yaml
 from gaide_core.transforms import from_xyz_rpy
 from gaide_core.types import Array
-
-DEFAULT_CONFIG = Path(__file__).parent / "data" / "ur5.yaml"
+from planning.robot_names import resolve_robot_config, shipped_robots
 
 
 def example_robot_data_share() -> Path | None:
@@ -123,8 +122,14 @@ def _number(raw: Any, name: str, unit: str, source: Path) -> float:
 
 
 def load_robot_config(path: str | Path | None = None) -> RobotConfig:
-    """Load a robot config YAML (default: the UR5 of example-robot-data)."""
-    source = Path(path) if path is not None else DEFAULT_CONFIG
+    """Load a robot config YAML, or a shipped robot's by name (:func:`resolve_robot_config`;
+    default: the UR5 of example-robot-data)."""
+    source = resolve_robot_config(path)
+    if not source.exists():
+        raise ConfigError(
+            f"robot config {source} does not exist; give a robot config YAML or a shipped "
+            f"robot's name: {', '.join(shipped_robots())}"
+        )
     raw = load_yaml(source, "robot config", ConfigError)
     if not isinstance(raw, dict) or "urdf" not in raw:
         raise ConfigError(f"robot config {source} must be a mapping with at least 'urdf'")

@@ -13,6 +13,7 @@ from typing import Any
 from gaide.commands.execution import add_bench_parser
 from gaide.common import (
     add_checker_option,
+    add_robot_option,
     print_table,
     progress,
     robot_and_spheres,
@@ -27,14 +28,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     p = sub.add_parser("bench", help="benchmarks")
     bsub = p.add_subparsers(dest="bench_cmd", required=True)
     col = bsub.add_parser("collision", help="speed and accuracy of the collision checker")
-    col.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(col)
     col.add_argument("--json", help="write the figures to this JSON file")
     col.add_argument("--quick", action="store_true", help="small sizes (a smoke test)")
     col.add_argument("--seed", type=seed, default=0)
     add_checker_option(col)
     col.set_defaults(func=cmd_collision)
     per = bsub.add_parser("perception", help="calibration and cloud accuracy on synthetic bags")
-    per.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(per)
     per.add_argument("--json", help="write the figures to this JSON file")
     per.add_argument("--quick", action="store_true", help="fewer frames and poses (a smoke test)")
     per.add_argument("--seed", type=seed, default=0)
@@ -61,7 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     pla.add_argument(
         "--mesh-check", action="store_true", help="also check paths against PyBullet's meshes"
     )
-    pla.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(pla)
     add_checker_option(pla)
     pla.add_argument(
         "--weights",
@@ -103,7 +104,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="after the band, keep only the band's points that straight certified edges "
         "cannot skip (default: the data's oracle, which pulls)",
     )
-    ora.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(ora)
     ora.add_argument("--json", help="write the figures to this JSON file")
     ora.set_defaults(func=cmd_oracle)
     tab = bsub.add_parser("table", help="a Markdown table of chosen planners from a bench JSON")
@@ -117,7 +118,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     sam.add_argument("--checkpoint", help="time this checkpoint instead of the shipped weights")
     sam.add_argument("--batches", default="1,8,32", help="rollouts per forward pass")
     sam.add_argument("--repeats", type=int, default=50)
-    sam.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(sam)
     sam.add_argument("--json", help="write the figures to this JSON file")
     sam.set_defaults(func=cmd_sampler)
     add_bench_parser(bsub)  # gaide bench timing (issue 6)

@@ -17,6 +17,7 @@ from execution.timing_cfg import TimingCfg, TimingMode
 from execution.urscript import UrScriptCfg, UrScriptMode, ur_order
 from gaide.common import (
     add_checker_option,
+    add_robot_option,
     print_table,
     progress,
     robot_and_spheres,
@@ -83,7 +84,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         )
         tm.add_argument(f"--max-{kind}", help=f"per-joint {kind} limits ({unit}), comma-separated")
     tm.add_argument("--no-shortcut", action="store_true", help="time the path as given")
-    tm.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(tm)
     add_checker_option(tm)
     tm.set_defaults(func=cmd_time)
 
@@ -102,7 +103,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "--settle", type=float, default=SIM.settle_s, help="hold the goal this long (s)"
     )
     sim.add_argument("--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS2 bags")
-    sim.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(sim)
     add_checker_option(sim)
     sim.set_defaults(func=cmd_simulate)
 
@@ -376,7 +377,7 @@ def add_bench_parser(bsub: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--paths", type=int, default=60, help="paths (spread over the families)")
     p.add_argument("--families", default="all", help="comma-separated families or 'all'")
     p.add_argument("--budget", type=float, default=5.0, help="RRT-Connect budget per path (s)")
-    p.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(p)
     p.add_argument("--json", help="write the figures to this JSON file")
     p.set_defaults(func=cmd_bench_timing)
 

@@ -11,7 +11,14 @@ from typing import Any
 
 import numpy as np
 
-from gaide.common import JobProgress, add_checker_option, print_table, robot_and_spheres, seed
+from gaide.common import (
+    JobProgress,
+    add_checker_option,
+    add_robot_option,
+    print_table,
+    robot_and_spheres,
+    seed,
+)
 from gaide.pipeline.config import PlanningCfg
 from gaide_core.errors import ConfigError, ExecutionError, PlanningError
 from gaide_core.plan_file import PlanFile, write_plan
@@ -80,7 +87,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         gen.add_argument(old_flag, type=float, help=argparse.SUPPRESS)
     gen.add_argument("--workers", type=int, help="processes (default: all cores)")
     add_checker_option(gen)
-    gen.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(gen)
     gen.set_defaults(func=cmd_data_generate)
 
     tr = sub.add_parser("train", help="train GAIDE, an ablation or a neural baseline")
@@ -118,7 +125,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         help="draw a family's training pairs W times as often as the others' (default 1 each)",
     )
     tr.add_argument("--resume", action="store_true", help="continue from --out if it exists")
-    tr.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(tr)
     tr.set_defaults(func=cmd_train)
 
     pl = sub.add_parser("plan", help="plan one problem and write the path as JSON")
@@ -139,7 +146,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         "--budget", type=float, default=PlanningCfg().budget_s, help="seconds (gaide run's default)"
     )
     add_checker_option(pl)
-    pl.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(pl)
     pl.add_argument("-o", "--output", required=True, help="path JSON")
     pl.set_defaults(func=cmd_plan)
 

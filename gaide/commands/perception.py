@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gaide.common import print_table, robot_and_spheres, write_json
+from gaide.common import add_robot_option, print_table, robot_and_spheres, write_json
 from gaide_core.errors import ConfigError
 from perception.cloud_cfg import CloudCfg
 
@@ -53,7 +53,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     cal.add_argument(
         "--target-pose", help="fixed mode: YAML with the target and its pose in the base frame"
     )
-    cal.add_argument("--robot", help="robot config YAML (hand-eye; default: UR5)")
+    add_robot_option(cal, " (for hand-eye)")
     cal.add_argument("--flange", help="frame of the flange poses (hand-eye; default: end effector)")
     cal.add_argument("--base-frame", default="base_link", help="TF name of the robot base frame")
     cal.add_argument(
@@ -79,7 +79,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         dest="T_base_cam",
         help="color camera pose in the base frame: x,y,z,qx,qy,qz,qw (m)",
     )
-    per.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(per)
     per.add_argument(
         "--joints", help="robot joint values (rad, comma separated) when the bag has none"
     )

@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from gaide.common import progress, robot_and_spheres, seed
+from gaide.common import add_robot_option, progress, robot_and_spheres, seed
 from perception.frames import BagLayout
 
 
@@ -28,7 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     p.add_argument("--ros", type=int, choices=[1, 2], default=1, help="ROS version of the bag")
     p.add_argument("--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS2 storage")
     p.add_argument("--frames", type=int, default=5, help="frames (fixed) or robot poses (hand-eye)")
-    p.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(p)
     p.add_argument("--seed", type=seed, default=0)
     p.set_defaults(func=cmd_record)
 

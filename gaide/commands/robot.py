@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gaide.common import print_table, robot_and_spheres
+from gaide.common import add_robot_option, print_table, robot_and_spheres
 from gaide_core.errors import ConfigError
 
 
@@ -16,10 +16,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     p = sub.add_parser("robot", help="inspect a robot, generate its spheres, draw it")
     rsub = p.add_subparsers(dest="robot_cmd", required=True)
     info = rsub.add_parser("info", help="joints, limits, links and spheres")
-    info.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(info)
     info.set_defaults(func=cmd_info)
     sph = rsub.add_parser("spherize", help="generate a sphere model from the collision meshes")
-    sph.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(sph)
     sph.add_argument("--max-spheres", type=int, default=60)
     sph.add_argument("-o", "--output", required=True, help="sphere YAML (cuRobo layout)")
     sph.set_defaults(func=cmd_spherize)
@@ -59,7 +59,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     setup.add_argument("-o", "--output", required=True, help="robot config YAML to write")
     setup.set_defaults(func=cmd_setup)
     show = rsub.add_parser("show", help="draw the robot's spheres at a configuration")
-    show.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(show)
     show.add_argument("--q", help="joint values (rad), comma separated, or a named configuration")
     show.add_argument("-o", "--output", required=True, help="PNG file")
     show.set_defaults(func=cmd_show)

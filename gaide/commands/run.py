@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from gaide.common import print_table, seed
+from gaide.common import add_robot_option, print_table, seed
 from gaide.pipeline.config import RunCfg
 from gaide.pipeline.config_io import dump_cfg, load_cfg, parse_assignment
 from gaide.pipeline.runner import StageRecord, StageRunner
@@ -31,7 +31,7 @@ def add_setting_flags(p: argparse.ArgumentParser) -> None:
         metavar="KEY=VALUE",
         help="any setting, e.g. --set planning.budget_s=5 --set perception.voxel=0.02",
     )
-    p.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(p)
     cam = p.add_mutually_exclusive_group()
     cam.add_argument("--calib", help="calibration YAML from `gaide calibrate` (skip calibrating)")
     cam.add_argument(

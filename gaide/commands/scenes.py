@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gaide.common import print_table, robot_and_spheres, seed
+from gaide.common import add_robot_option, print_table, robot_and_spheres, seed
 from planning.family_names import FAMILIES, parse_families, split_seed
 
 
@@ -23,14 +23,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         default="surface",
         help="scene cloud: obstacle surfaces, or a virtual camera's partial view",
     )
-    show.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(show)
     show.add_argument("-o", "--output", required=True, help="PNG file")
     show.set_defaults(func=cmd_show)
     exp = ssub.add_parser("export", help="write generated problems to a YAML/JSON problem file")
     exp.add_argument("--families", default="all", help="comma-separated names or 'all'")
     exp.add_argument("--split", choices=["train", "val", "test"], default="test")
     exp.add_argument("--problems", type=int, default=10, help="problems per family")
-    exp.add_argument("--robot", help="robot config YAML (default: UR5)")
+    add_robot_option(exp)
     exp.add_argument("-o", "--output", required=True, help="problem file (.yaml or .json)")
     exp.set_defaults(func=cmd_export)
     imp = ssub.add_parser(
@@ -40,7 +40,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     imp.add_argument(
         "folders", nargs="+", help="folders of sceneNNNN.yaml / requestNNNN.yaml pairs"
     )
-    imp.add_argument("--robot", help="robot config YAML whose world frame the scenes use")
+    add_robot_option(imp, " whose world frame the scenes use")
     imp.add_argument("-o", "--output", required=True, help="problem file (.yaml or .json)")
     imp.set_defaults(func=cmd_import_moveit)
 

@@ -18,6 +18,7 @@ import yaml
 from gaide.pipeline.config import RunCfg
 from gaide_core.errors import ConfigError
 from gaide_core.text_io import load_yaml, parse_yaml
+from planning.robot_names import shipped_robots
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 DEFAULTS = DATA / "run.yaml"
@@ -30,6 +31,8 @@ PATH_KEYS = (
     "perception.bag_robot",
     "planning.checkpoint",
 )
+#: Of those, the keys that also take a shipped robot's name (``panda``).
+ROBOT_KEYS = ("robot", "perception.bag_robot")
 
 
 def read_yaml(path: str | Path) -> dict[str, Any]:
@@ -105,7 +108,10 @@ def _resolve_paths(layer: dict[str, Any], folder: Path) -> dict[str, Any]:
     for dotted in PATH_KEYS:
         value = _get(out, dotted)
         if isinstance(value, str) and value and not Path(value).expanduser().is_absolute():
-            out = merge_loose(out, nest(dotted, str(folder / value)))
+            here = folder / value
+            if dotted in ROBOT_KEYS and not here.exists() and value in shipped_robots():
+                continue  # a shipped robot's name, not a file beside the settings
+            out = merge_loose(out, nest(dotted, str(here)))
     return out
 
 

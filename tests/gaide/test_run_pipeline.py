@@ -223,6 +223,15 @@ def test_settings_precedence_defaults_then_file_then_flags(
     assert timing.rate_hz == 250.0 and timing.mode.value == "exact"
 
 
+def test_a_settings_file_names_a_shipped_robot_or_its_own_file(tmp_path: Path) -> None:
+    cfg_file = tmp_path / "mine.yaml"
+    cfg_file.write_text("robot: panda\nperception: {bag_robot: ur10}\n")
+    cfg = load_cfg([cfg_file])
+    assert cfg.robot == "panda" and cfg.perception.bag_robot == "ur10"  # shipped names
+    (tmp_path / "panda").write_text("urdf: arm.urdf\n")  # a file of that name beside it wins
+    assert load_cfg([cfg_file]).robot == str(tmp_path / "panda")
+
+
 def test_a_stage_reports_its_own_code_except_for_settings_bags_and_models() -> None:
     from gaide.pipeline.runner import stage_error
     from gaide_core.errors import BagError, ModelError, PerceptionError, PlanningError

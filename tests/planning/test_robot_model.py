@@ -10,6 +10,7 @@ from gaide_core.errors import ConfigError, RobotModelError
 from planning.ik import solve_ik
 from planning.robot_config import load_robot_config
 from planning.robot_model import RobotModel, load_robot
+from planning.robot_names import DEFAULT_CONFIG, resolve_robot_config, shipped_robots
 
 
 def test_default_ur5_loads(robot: RobotModel) -> None:
@@ -114,6 +115,21 @@ def test_missing_mesh_is_named(tmp_path: Path) -> None:
     robot = load_robot(_config(tmp_path, str(urdf)))
     with pytest.raises(RobotModelError, match=r"gone\.stl"):
         _ = robot.link_meshes
+
+
+def test_a_shipped_robot_loads_by_name(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    shipped = shipped_robots()
+    assert {"ur5", "ur10", "panda", "xarm7"} <= set(shipped)
+    assert not any(name.endswith("_spheres") for name in shipped)
+    assert resolve_robot_config(None) == DEFAULT_CONFIG == shipped["ur5"]
+    monkeypatch.chdir(tmp_path)
+    by_name, by_path = load_robot_config("panda"), load_robot_config(shipped["panda"])
+    assert by_name.urdf == by_path.urdf and by_name.end_effector == by_path.end_effector
+    # a file of that name here is the user's, and wins
+    (tmp_path / "panda").write_text("urdf: mine.urdf\n")
+    assert resolve_robot_config("panda") == Path("panda")
+    with pytest.raises(ConfigError, match="panda, ur10, ur5, xarm7"):
+        load_robot_config("pandas")
 
 
 def test_config_errors(tmp_path: Path) -> None:
