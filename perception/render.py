@@ -5,13 +5,21 @@ Open3D's renderer (Filament on Vulkan, or Mesa's software rasterizer on machines
 GPU) draws the picture in a child process: with a lit material, its
 ``render_to_image`` ran for minutes on the software rasterizer under load (seen here), and a
 child can be stopped. If it fails or runs past the timeout, matplotlib draws the picture instead.
+
+The child is a fresh interpreter (``python -m perception.render JOB OUT``), not a fork: a
+process that has run an OpenMP region (numpy's BLAS, OpenCV, Open3D's own filters) leaves
+GNU OpenMP's thread pool unusable in a forked child, and Open3D's next parallel loop there
+(adding a cloud of more than about 5,000 points) waits forever; ``gaide perceive`` on a real
+bag hit the timeout every time that way.
 """
 
 from __future__ import annotations
 
 import logging
-import multiprocessing as mp
 import os
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -62,21 +70,27 @@ def _render(
     axes: float,
     timeout_s: float,
 ) -> str:
-    """Draw into ``tmp`` with Open3D (in a child process, given ``timeout_s``), else
+    """Draw into ``tmp`` with Open3D (in a fresh interpreter, given ``timeout_s``), else
     matplotlib; returns which drew it."""
-    job = (str(tmp), pts, cols, eye, lookat, size, axes)
-    # fork: the child inherits the imports (a spawned child spends seconds importing Open3D);
-    # the parent never starts a renderer, so no GPU or Filament state is forked.
-    proc = mp.get_context("fork").Process(target=_open3d_worker, args=job, daemon=True)
-    proc.start()
-    proc.join(timeout_s)
-    if proc.is_alive():
-        proc.kill()
-        proc.join()
-        log.warning(
-            "Open3D's renderer did not finish in %.0f s; drawing with matplotlib", timeout_s
-        )
-    if proc.exitcode == 0 and tmp.is_file():
+    with tempfile.TemporaryDirectory(prefix="gaide-render-") as folder:
+        job = Path(folder) / "job.npz"
+        np.savez(job, points=pts, colors=cols, eye=eye, lookat=lookat, size=size, axes=axes)
+        command = [sys.executable, "-m", "perception.render", str(job), str(tmp)]
+        try:
+            done = subprocess.run(command, capture_output=True, timeout=timeout_s, check=False)
+            drawn = done.returncode == 0 and tmp.is_file()
+            if not drawn:
+                log.info(
+                    "Open3D's renderer failed (exit %d): %s",
+                    done.returncode,
+                    done.stderr.decode(errors="replace").strip()[-500:],
+                )
+        except subprocess.TimeoutExpired:  # run() has killed the child
+            log.warning(
+                "Open3D's renderer did not finish in %.0f s; drawing with matplotlib", timeout_s
+            )
+            drawn = False
+    if drawn:
         return "open3d"
     tmp.unlink(missing_ok=True)
     _matplotlib_png(tmp, pts, cols, eye, lookat, size, axes)
@@ -91,16 +105,14 @@ def _colors(points: Array, colors: Array | None) -> Array:
     return np.stack([0.3 + 0.5 * shade] * 3, axis=1)
 
 
-def _open3d_worker(
-    tmp: str,
-    points: Array,
-    colors: Array,
-    eye: tuple[float, float, float],
-    lookat: tuple[float, float, float],
-    size: tuple[int, int],
-    axes: float,
-) -> None:
+def _open3d_child(job: str, out: str) -> None:
+    """The child's work: the job's cloud drawn into ``out``; exits 0 when written."""
     import open3d as o3d
+
+    with np.load(job) as data:
+        points, colors, axes = data["points"], data["colors"], float(data["axes"])
+        eye, lookat = data["eye"].tolist(), data["lookat"].tolist()
+        size = tuple(int(v) for v in data["size"])
 
     with quiet_native_output():
         renderer = o3d.visualization.rendering.OffscreenRenderer(*size)
@@ -121,7 +133,7 @@ def _open3d_worker(
         )
     renderer.setup_camera(50.0, list(lookat), list(eye), [0.0, 0.0, 1.0])
     image = renderer.render_to_image()
-    ok = o3d.io.write_image(Path(tmp), image)
+    ok = o3d.io.write_image(out, image)
     # Leave without Filament's teardown, which takes seconds on the software rasterizer.
     os._exit(0 if ok else 1)
 
@@ -161,3 +173,7 @@ def _matplotlib_png(
     ax.set_zlabel("z (m)")
     fig.savefig(tmp)
     plt.close(fig)
+
+
+if __name__ == "__main__":
+    _open3d_child(sys.argv[1], sys.argv[2])
