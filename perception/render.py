@@ -112,10 +112,10 @@ def _open3d_child(job: str, out: str) -> None:
     with np.load(job) as data:
         points, colors, axes = data["points"], data["colors"], float(data["axes"])
         eye, lookat = data["eye"].tolist(), data["lookat"].tolist()
-        size = tuple(int(v) for v in data["size"])
+        width, height = (int(v) for v in data["size"])
 
     with quiet_native_output():
-        renderer = o3d.visualization.rendering.OffscreenRenderer(*size)
+        renderer = o3d.visualization.rendering.OffscreenRenderer(width, height)
     scene = renderer.scene
     scene.set_background([1.0, 1.0, 1.0, 1.0])
     # Filament's tone mapping pales flat colours; the points carry their real colours.
@@ -133,7 +133,7 @@ def _open3d_child(job: str, out: str) -> None:
         )
     renderer.setup_camera(50.0, list(lookat), list(eye), [0.0, 0.0, 1.0])
     image = renderer.render_to_image()
-    ok = o3d.io.write_image(out, image)
+    ok = o3d.io.write_image(Path(out), image)
     # Leave without Filament's teardown, which takes seconds on the software rasterizer.
     os._exit(0 if ok else 1)
 
