@@ -85,3 +85,16 @@ class TimingCfg:
     def dt(self) -> float:
         """Sample period (s)."""
         return 1.0 / self.rate_hz
+
+
+def timing_phrase(mode: str | None, fallbacks: int) -> str:
+    """How the trajectory passes its waypoints, in words, from its summary's ``mode`` and
+    ``fallbacks`` (blended segments that collided and became exact, rest to rest)."""
+    if mode != "blended":
+        return "stops at every waypoint" if mode == "exact" else str(mode)
+    if not fallbacks:
+        return "blended through every waypoint"
+    return (
+        f"blended; {fallbacks} segment{'s' if fallbacks > 1 else ''} stop"
+        f"{'' if fallbacks > 1 else 's'} at both ends, where a blend collided"
+    )

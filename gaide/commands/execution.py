@@ -13,7 +13,7 @@ import numpy as np
 
 from execution.ros2_goal import Ros2GoalCfg
 from execution.sim_cfg import SimCfg
-from execution.timing_cfg import TimingCfg, TimingMode
+from execution.timing_cfg import TimingCfg, TimingMode, timing_phrase
 from execution.urscript import UrScriptCfg, UrScriptMode, ur_order
 from gaide.common import (
     add_checker_option,
@@ -202,7 +202,7 @@ def cmd_time(args: argparse.Namespace) -> int:
     fig = traj.figures
     print_table(
         [
-            ("mode", f"{cfg.mode.value} ({traj.status.value})"),
+            ("mode", timing_phrase(cfg.mode.value, int(fig.get("fallbacks", 0)))),
             ("scene", scene.label),
             ("duration", f"{traj.duration:.3f} s, {len(traj.t)} samples at {cfg.rate_hz:g} Hz"),
             (

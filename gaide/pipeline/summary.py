@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from execution.timing_cfg import timing_phrase
 from gaide.pipeline.runner import StageRecord, StageRunner, StageStatus
 
 
@@ -32,7 +33,8 @@ def _fmt_stage(r: StageRecord) -> str | None:
         )
     if r.name == "timing":
         return (
-            f"{f['duration_s']:.3f} s at {f['rate_hz']:g} Hz ({f['mode']}, {f['status']}), "
+            f"{f['duration_s']:.3f} s at {f['rate_hz']:g} Hz "
+            f"({timing_phrase(f['mode'], int(f.get('fallbacks', 0)))}), "
             f"{f['limit_violations']} limit violations"
         )
     if r.name == "simulation":

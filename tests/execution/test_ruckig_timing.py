@@ -6,7 +6,8 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from execution.ruckig_timing import RuckigParameterizer
-from execution.timing_cfg import TimingCfg, TimingMode
+from execution.timing_cfg import TimingCfg, TimingMode, timing_phrase
+from execution.trajectory import TimingStatus
 from execution.verify import distance_to_path, limit_violations, path_deviation, swept_collisions
 from gaide_core.errors import TimingError
 from planning.checker import make_checker
@@ -144,6 +145,20 @@ def test_a_blend_that_clips_an_obstacle_falls_back_and_stays_clear(
     assert swept_collisions(traj, checker) == 0
     assert traj.figures["recheck_samples"] > free.figures["recheck_samples"]
     assert traj.duration > free.duration
+    # what the summary says of it agrees with the status
+    fallbacks = int(traj.figures["fallbacks"])
+    assert (traj.status is TimingStatus.FELL_BACK) == (fallbacks > 0) == (len(traj.notes) > 0)
+    said = timing_phrase("blended", fallbacks)
+    assert ("where a blend collided" in said) == (fallbacks > 0)
+
+
+def test_the_summary_says_how_the_waypoints_are_passed() -> None:
+    assert timing_phrase("exact", 0) == "stops at every waypoint"
+    assert timing_phrase("blended", 0) == "blended through every waypoint"
+    assert timing_phrase("blended", 1) == (
+        "blended; 1 segment stops at both ends, where a blend collided"
+    )
+    assert timing_phrase("blended", 3).startswith("blended; 3 segments stop at both ends")
 
 
 # -- bad input -----------------------------------------------------------------------------
