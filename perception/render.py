@@ -76,8 +76,16 @@ def _render(
         job = Path(folder) / "job.npz"
         np.savez(job, points=pts, colors=cols, eye=eye, lookat=lookat, size=size, axes=axes)
         command = [sys.executable, "-m", "perception.render", str(job), str(tmp)]
+        # the child finds this package even where it is not installed (a source checkout)
+        root = str(Path(__file__).resolve().parents[1])
+        env = {
+            **os.environ,
+            "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])),
+        }
         try:
-            done = subprocess.run(command, capture_output=True, timeout=timeout_s, check=False)
+            done = subprocess.run(
+                command, capture_output=True, timeout=timeout_s, check=False, env=env
+            )
             drawn = done.returncode == 0 and tmp.is_file()
             if not drawn:
                 log.info(
