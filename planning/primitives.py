@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gaide_core.errors import PlanningError
 from gaide_core.transforms import to_xyz_quat
@@ -202,15 +203,28 @@ class PrimitiveWorld:
         return out
 
     def sample_surface(self, n: int, rng: np.random.Generator) -> Array:
-        """(n, 3) points on the obstacles' surfaces, spread by area (world frame)."""
-        import trimesh
+        """(n, 3) points on the obstacles' surfaces, spread by area (world frame).
 
-        meshes = [primitive_mesh(p) for p in self.primitives]
-        if not meshes:
+        The points of ``trimesh.sample.sample_surface`` on the obstacles' meshes joined, to the
+        bit, computed here on the meshes' arrays: building trimesh objects took ~10 ms a scene,
+        nine tenths of loading a training set (its clouds are drawn at load)."""
+        from trimesh import triangles
+
+        parts = [_mesh_arrays(p) for p in self.primitives]
+        if not parts:
             raise PlanningError("the world has no obstacles to sample")
-        mesh = trimesh.util.concatenate(meshes)
-        pts, _ = trimesh.sample.sample_surface(mesh, n, seed=int(rng.integers(2**31)))
-        return np.asarray(pts, float)
+        offsets = np.cumsum([0] + [len(v) for v, _ in parts[:-1]])
+        V = np.vstack([v for v, _ in parts])
+        F = np.vstack([f + o for (_, f), o in zip(parts, offsets, strict=True)])
+        random = np.random.default_rng(int(rng.integers(2**31))).random
+        weight_cum = np.cumsum(triangles.area(crosses=triangles.cross(V[F])))
+        face = np.searchsorted(weight_cum, random(n) * weight_cum[-1])
+        origins = V[F[:, 0]]
+        vectors = V[F[:, 1:]] - np.tile(origins, (1, 2)).reshape((-1, 2, 3))
+        origins, vectors = origins[face], vectors[face]
+        lengths = random((len(vectors), 2, 1))  # a point of the parallelogram, folded
+        lengths[lengths.sum(axis=1).reshape(-1) > 1.0] -= 1.0
+        return (vectors * np.abs(lengths)).sum(axis=1) + origins
 
     # -- serialization -------------------------------------------------------------------
 
@@ -393,6 +407,27 @@ def _rpy_matrix(roll: float, pitch: float, yaw: float) -> list[list[float]]:
         [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
         [-sp, cp * sr, cp * cr],
     ]
+
+
+_BOX_VERTICES: Array | None = None  # trimesh's unit box: vertices (8, 3) and faces (12, 3)
+_BOX_FACES: npt.NDArray[np.int64] | None = None
+
+
+def _mesh_arrays(p: Primitive) -> tuple[Array, npt.NDArray[np.int64]]:
+    """Vertices (V, 3) and faces (F, 3) of :func:`primitive_mesh` (p): a box's by trimesh's
+    own arithmetic (its unit box scaled, then ``transform_points``), without the object."""
+    global _BOX_VERTICES, _BOX_FACES
+    if not isinstance(p, Box):
+        mesh = primitive_mesh(p)
+        return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+    from trimesh import transformations
+
+    if _BOX_VERTICES is None or _BOX_FACES is None:
+        unit = primitive_mesh(Box(np.ones(3), np.eye(4)))
+        _BOX_VERTICES = (np.asarray(unit.vertices, float) + 0.5).copy()  # the corners 0 / 1
+        _BOX_FACES = np.asarray(unit.faces, np.int64).copy()
+    vertices = (_BOX_VERTICES - 0.5) * np.asarray(p.size, np.float64)
+    return transformations.transform_points(vertices, p.pose), _BOX_FACES
 
 
 def primitive_mesh(p: Primitive):  # type: ignore[no-untyped-def]

@@ -101,6 +101,41 @@ def test_scene_clouds_lie_on_the_obstacles(robot: RobotModel, spheres: SphereMod
     assert np.abs(p.world.distance(view)).max() < 2e-3  # float32 rays
 
 
+def test_surface_samples_are_trimeshs_to_the_bit() -> None:
+    # The clouds of the training sets are drawn when they load (planning.neural.data), so the
+    # sampler must keep giving the points the shipped weights were trained on: those of
+    # trimesh's sample_surface on the joined meshes, which it now computes without the objects.
+    import trimesh
+
+    from planning.primitives import Box, Cylinder, PrimitiveWorld, Sphere, primitive_mesh
+
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        items: list[Box | Cylinder | Sphere] = []
+        for _ in range(int(rng.integers(1, 6))):
+            pose = np.eye(4)
+            pose[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+            if np.linalg.det(pose[:3, :3]) < 0:
+                pose[:3, 0] *= -1
+            pose[:3, 3] = rng.uniform(-1, 1, 3)
+            kind = int(rng.integers(3)) if trial % 2 else 0
+            if kind == 0:
+                items.append(Box(rng.uniform(0.01, 0.8, 3), pose))
+            elif kind == 1:
+                items.append(
+                    Cylinder(float(rng.uniform(0.01, 0.2)), float(rng.uniform(0.05, 0.5)), pose)
+                )
+            else:
+                items.append(Sphere(float(rng.uniform(0.01, 0.2)), rng.uniform(-1, 1, 3)))
+        world = PrimitiveWorld(items)
+        seed = int(rng.integers(2**31))
+        got = world.sample_surface(500, np.random.default_rng(seed))
+        joined = trimesh.util.concatenate([primitive_mesh(p) for p in items])
+        draw = int(np.random.default_rng(seed).integers(2**31))
+        want, _ = trimesh.sample.sample_surface(joined, 500, seed=draw)
+        np.testing.assert_array_equal(got, want)
+
+
 def test_a_scene_without_an_anchor_still_gives_ends_that_join(
     robot: RobotModel, spheres: SphereModel
 ) -> None:
