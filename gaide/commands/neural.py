@@ -217,7 +217,7 @@ def cmd_data_generate(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from planning.neural.train import TrainCfg, Trainer
+    from planning.neural.train import Dist, TrainCfg, Trainer
 
     robot, _ = robot_and_spheres(args.robot)
     cfg = TrainCfg(
@@ -253,7 +253,17 @@ def cmd_train(args: argparse.Namespace) -> int:
         from planning.neural.checkpoint import load_checkpoint
 
         model_cfg = load_checkpoint(args.out, robot, args.model).cfg  # resume at its sizes
-    trainer = Trainer(args.model, robot, args.data, cfg, model_cfg)
+    # under torchrun every process loads the data, and rank 0 reports
+    loading = (
+        JobProgress(f"train {args.model}: load {args.data}", "shard")
+        if Dist.from_env().main
+        else None
+    )
+    trainer = Trainer(
+        args.model, robot, args.data, cfg, model_cfg, None if loading is None else loading.update
+    )
+    if loading is not None:
+        loading.close()
     if args.resume and Path(args.out).exists():
         trainer.resume(args.out)
     main = trainer.dist.main  # under torchrun, rank 0 reports

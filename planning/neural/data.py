@@ -37,6 +37,7 @@ import itertools
 import json
 import logging
 import zipfile
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -258,13 +259,17 @@ def _shard_scenes(z: Any, families: tuple[str, ...], points: int) -> npt.NDArray
     return np.stack(clouds)
 
 
-def load_paths(path: str | Path) -> PathSet:
+def load_paths(path: str | Path, progress: Callable[[int, int], None] | None = None) -> PathSet:
+    """Every path of the data directory ``path``, with its scene's cloud (drawn here);
+    ``progress(done, total)`` after each shard (a 50,000-path set takes tens of seconds)."""
     manifest = read_manifest(path)
     families = tuple(manifest["settings"]["families"])
     points = int(manifest["settings"]["scene_points"])
     scenes, scene_of, paths, fams, cats = [], [], [], [], []
     rows = 0
-    for s in manifest["shards"]:
+    for done, s in enumerate(manifest["shards"], 1):
+        if progress is not None:
+            progress(done - 1, len(manifest["shards"]))
         f = Path(path) / s["file"]
         try:
             with np.load(f) as z:
@@ -284,6 +289,8 @@ def load_paths(path: str | Path) -> PathSet:
             raise ModelError(
                 f"{f}: corrupt or missing shard ({err}); delete it and run `gaide data generate` again to remake it"
             ) from err
+    if progress is not None:
+        progress(len(manifest["shards"]), len(manifest["shards"]))
     if not paths:
         raise ModelError(f"{path}: the data set holds no paths")
     return PathSet(

@@ -163,12 +163,14 @@ class Trainer:
         data: str | Path,
         cfg: TrainCfg,
         model_cfg: ModelCfg | None = None,
+        load_progress: Callable[[int, int], None] | None = None,
     ) -> None:
+        """``load_progress(done, total)``: the data's shards loaded so far."""
         if kind not in MODEL_KINDS:
             raise ModelError(f"unknown model '{kind}'; valid: {list(MODEL_KINDS)}")
         cfg.check()
         self.kind, self.robot, self.cfg, self.data = kind, robot, cfg, Path(data)
-        self.paths = load_paths(data)
+        self.paths = load_paths(data, load_progress)
         self.model_cfg = model_cfg or ModelCfg(step=self.paths.max_step)
         if abs(self.model_cfg.step - self.paths.max_step) > 1e-9:
             raise ModelError(

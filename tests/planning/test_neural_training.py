@@ -69,7 +69,9 @@ def test_the_data_set_holds_resampled_oracle_paths_and_resumes(
     manifest = read_manifest(data_dir)
     assert manifest["complete"] and len(manifest["shards"]) == 2
     assert manifest["paths"] + manifest["failures"] == 8
-    ps = load_paths(data_dir)
+    seen: list[tuple[int, int]] = []
+    ps = load_paths(data_dir, lambda done, total: seen.append((done, total)))
+    assert seen == [(0, 2), (1, 2), (2, 2)]  # before each shard, and at the end
     assert len(ps.paths) == manifest["paths"] >= 7
     assert ps.scenes.shape[1:] == (DATA.scene_points, 3)
     # one cloud per scene, shared by its paths; the categories cycle within a scene
