@@ -351,6 +351,27 @@ def _run_servo(
     )
 
 
+def cloud_near_motion(
+    points: Array, traj: TimedTrajectory, checker: CollisionChecker, crop_m: float
+) -> Array:
+    """The cloud points (M, 3) within ``crop_m`` of a collision sphere of the robot anywhere
+    along ``traj`` (sampled every 20 ms, where a sphere moves a few cm at most): the only ones
+    the moving robot can touch, and all the simulator needs as boxes (fewer bodies, faster
+    steps, so the boxes can be as fine as the run's)."""
+    from scipy.spatial import cKDTree
+
+    stride = max(1, round(0.02 * traj.rate_hz))
+    Q = traj.q[::stride]
+    centres = checker.sphere_centers(Q).reshape(-1, 3)
+    reach = np.round(np.tile(checker.radii, len(Q)) + crop_m, 4)
+    tree = cKDTree(points)
+    keep = np.zeros(len(points), bool)
+    for r in np.unique(reach):
+        for idx in tree.query_ball_point(centres[reach == r], r):
+            keep[idx] = True
+    return points[keep]
+
+
 def simulate(
     traj: TimedTrajectory,
     robot: RobotModel,

@@ -23,13 +23,15 @@ from gaide.common import (
     robot_and_spheres,
     write_json,
 )
+from gaide.pipeline.config import SimulateCfg
 from gaide.scene_spec import HELP as SCENE_HELP
 from gaide.scene_spec import Scene, load_scene, next_to
 from gaide_core.errors import ConfigError, ExecutionError, TimingError
 from gaide_core.plan_file import PlanFile, read_plan
 
 # the defaults the flags show (gaide run's too)
-TIMING, SIM, URSCRIPT, GOAL = TimingCfg(), SimCfg(), UrScriptCfg(), Ros2GoalCfg()
+# gaide simulate replays as gaide run simulates: its section's defaults (finer boxes, a crop)
+TIMING, SIM, URSCRIPT, GOAL = TimingCfg(), SimulateCfg(), UrScriptCfg(), Ros2GoalCfg()
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -101,6 +103,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     sim.add_argument("--plot", help="PNG of planned vs simulated positions and the error")
     sim.add_argument(
         "--settle", type=float, default=SIM.settle_s, help="hold the goal this long (s)"
+    )
+    sim.add_argument(
+        "--voxel", type=float, default=SIM.voxel_m, help="a cloud's boxes: their size (m)"
+    )
+    sim.add_argument(
+        "--crop",
+        type=float,
+        default=SIM.crop_m,
+        help="a cloud's points farther than this from the moving robot's spheres are left "
+        "out (m; 0: none)",
     )
     sim.add_argument("--storage", choices=["sqlite3", "mcap"], default="sqlite3", help="ROS2 bags")
     add_robot_option(sim)
@@ -255,7 +267,9 @@ def _per_joint_rows(
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     traj = _read_any_trajectory(args.trajectory)  # before the simulator and the robot load
-    sim_cfg = SimCfg(settle_s=args.settle)
+    sim_cfg = SimCfg(settle_s=args.settle, voxel_m=args.voxel)
+    if not 0.0 <= args.crop <= 10.0:
+        raise ExecutionError(f"--crop must be in [0, 10] m, got {args.crop}")
     from execution.compare import compare
     from execution.export import check_joints, check_log_outputs, write_log
     from execution.plots import comparison_png
@@ -265,17 +279,21 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     robot, spheres = robot_and_spheres(args.robot)
     # before PyBullet loads (its import prints a line) and the scene
     check_joints(traj.joint_names, robot, f"trajectory {args.trajectory}")
-    from execution.simulate import simulate
+    from execution.simulate import cloud_near_motion, simulate
 
     scene = load_scene(args.scene, robot, spheres)
+    checker = make_checker(robot, spheres, scene.world, backend=args.checker)
+    cloud = scene.cloud
+    if cloud is not None and args.crop > 0:
+        cloud = cloud_near_motion(cloud, traj, checker, args.crop)
     result = simulate(
         traj,
         robot,
         primitives=scene.primitives,
-        cloud=scene.cloud,
+        cloud=cloud if cloud is None or len(cloud) else None,
         cfg=sim_cfg,
         start_ns=time.time_ns(),
-        checker=make_checker(robot, spheres, scene.world, backend=args.checker),
+        checker=checker,
     )
     report = {"trajectory": args.trajectory, "scene": scene.label, **result.summary()}
     extra: dict[Path, bytes] = {}

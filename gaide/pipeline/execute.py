@@ -8,16 +8,12 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-from scipy.spatial import cKDTree
-
 from execution.trajectory import TimedTrajectory
 from gaide.pipeline.config import EXPORT_NAMES, RunCfg
 from gaide.pipeline.motion import Planned
 from gaide.pipeline.runner import StageRecord, StageRunner
 from gaide.pipeline.sense import Sensed
 from gaide_core.errors import ExecutionError
-from gaide_core.types import Array
 
 
 def export_stage(
@@ -44,22 +40,6 @@ def export_stage(
     return written
 
 
-def near_robot(points: Array, planned_q: Array, planned: Planned, crop_m: float) -> Array:
-    """The cloud points (M, 3) within ``crop_m`` of a robot sphere at any of the
-    configurations ``planned_q`` (T, dof): the only ones the moving robot can touch, as
-    long as consecutive configurations move a sphere less than ``crop_m``."""
-    checker = planned.checker
-    centres = checker.sphere_centers(planned_q).reshape(-1, 3)
-    radii = np.tile(checker.radii, len(planned_q))
-    tree = cKDTree(points)
-    keep = np.zeros(len(points), bool)
-    for r in np.unique(np.round(radii + crop_m, 4)):
-        sel = np.isclose(np.round(radii + crop_m, 4), r)
-        for idx in tree.query_ball_point(centres[sel], r):
-            keep[idx] = True
-    return points[keep]
-
-
 def simulation_stage(
     cfg: RunCfg,
     traj: TimedTrajectory,
@@ -74,13 +54,11 @@ def simulation_stage(
     from execution.compare import compare
     from execution.export import write_log
     from execution.plots import comparison_png
-    from execution.simulate import SimStatus, simulate
+    from execution.simulate import SimStatus, cloud_near_motion, simulate
 
     s = cfg.simulate
     robot = planned.checker.robot
-    # Every 20 ms of the trajectory: spheres move a few cm at most between two of them.
-    stride = max(1, round(0.02 * traj.rate_hz))
-    cloud = near_robot(sensed.cloud.points, traj.q[::stride], planned, s.crop_m)
+    cloud = cloud_near_motion(sensed.cloud.points, traj, planned.checker, s.crop_m)
     result = simulate(
         traj,
         robot,

@@ -61,7 +61,10 @@ def test_command_flags_default_to_the_class_values() -> None:
     assert flags["rate"] == timing.rate_hz and flags["mode"] == timing.mode.value
     assert flags["velocity_scale"] == timing.velocity_scale
     assert flags["jerk_scale"] == timing.jerk_scale
-    assert _defaults("simulate")["settle"] == sim.settle_s
+    # gaide simulate replays as a run simulates: the run's section, not the library's
+    replay, run_sim = _defaults("simulate"), RunCfg().simulate
+    assert replay["settle"] == run_sim.settle_s != sim.settle_s
+    assert replay["voxel"] == run_sim.voxel_m != sim.voxel_m and replay["crop"] == run_sim.crop_m
     urscript, goal = UrScriptCfg(), Ros2GoalCfg()
     assert flags["urscript_mode"] == urscript.urscript_mode.value
     assert flags["servoj_period"] == urscript.servoj_period_s
