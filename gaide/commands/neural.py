@@ -124,6 +124,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
         metavar="FAMILY=W,...",
         help="draw a family's training pairs W times as often as the others' (default 1 each)",
     )
+    tr.add_argument(
+        "--state-noise",
+        type=float,
+        default=0.0,
+        metavar="RAD",
+        help="jitter q_t of half the training pairs by a Gaussian of this spread, the label "
+        "still the oracle's next waypoint (default 0: off)",
+    )
     tr.add_argument("--resume", action="store_true", help="continue from --out if it exists")
     add_robot_option(tr)
     tr.set_defaults(func=cmd_train)
@@ -229,6 +237,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         threads=args.threads,
         val_every=args.val_every,
         family_weights=args.family_weights,
+        state_noise=args.state_noise,
     )
     from planning.neural.data import read_manifest
     from planning.neural.models import ModelCfg

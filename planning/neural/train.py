@@ -62,6 +62,10 @@ class TrainCfg:
     # not named); validation draws every pair alike. Measured: the shelves at 2 lifted GAIDE
     # and SIMPNet alike (docs/results.md, "Twice the shelves' pairs").
     family_weights: dict[str, float] = field(default_factory=dict)
+    # rad: the spread of a Gaussian added to q_t on half the training pairs (the label still
+    # points at the oracle's next waypoint), so the network also learns to steer back from
+    # the states a rollout drifts into. 0: off. Validation stays on the oracle's own states.
+    state_noise: float = 0.0
 
     def check(self) -> None:
         if self.steps < 1 or self.batch < 1 or not self.lr > 0 or not 0 <= self.val_share < 1:
@@ -69,6 +73,8 @@ class TrainCfg:
                 "need steps >= 1, batch >= 1, lr > 0 and 0 <= val_share < 1; got "
                 f"{self.steps}, {self.batch}, {self.lr}, {self.val_share}"
             )
+        if not 0 <= self.state_noise < 1:
+            raise ModelError(f"need 0 <= state_noise < 1 rad; got {self.state_noise}")
         bad = {k: w for k, w in self.family_weights.items() if not (0 < w < math.inf)}
         if bad:
             raise ModelError(f"family weights must be finite and > 0; got {bad}")
@@ -251,9 +257,13 @@ class Trainer:
         return c.lr * (0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(t, 1.0))))
 
     def _tensors(
-        self, pairs: Pairs, rng: np.random.Generator, size: int
+        self, pairs: Pairs, rng: np.random.Generator, size: int, *, noise: float = 0.0
     ) -> tuple[torch.Tensor, ...]:
         scene_idx, q, goal, q_next = pairs.batch(rng, size)
+        if noise > 0:
+            moved = rng.random(size) < 0.5
+            jitter = rng.normal(0.0, noise, q.shape) * moved[:, None]
+            q = np.clip(q + jitter, self.robot.lower, self.robot.upper).astype(np.float32)
         n = self.model_cfg.scene_points
         scenes = self.paths.scenes
         pick = rng.choice(scenes.shape[1], n, replace=False) if scenes.shape[1] > n else slice(None)
@@ -342,7 +352,10 @@ class Trainer:
             torch.manual_seed(c.seed * 1_000_003 + self.step + 7919 * d.rank)
             for g in self.opt.param_groups:
                 g["lr"] = self.lr_at(self.step)
-            loss = self._loss(self._tensors(self.train_pairs, rng, c.batch // d.world), train=True)
+            loss = self._loss(
+                self._tensors(self.train_pairs, rng, c.batch // d.world, noise=c.state_noise),
+                train=True,
+            )
             if not torch.isfinite(loss):
                 raise ModelError(
                     f"training diverged at step {self.step} (loss {float(loss)}); lower --lr"

@@ -314,3 +314,30 @@ def test_family_weights_draw_a_familys_pairs_that_much_more_often(
     )  # fmt: skip
     assert bad.returncode != 0 and "not FAMILY=W" in bad.stderr
     assert not (tmp_path / "x.pt").exists()
+
+
+def test_state_noise_moves_half_the_states_and_keeps_the_oracles_next_waypoint(
+    data_dir: Path, robot: RobotModel, tmp_path: Path
+) -> None:
+    cfg = TrainCfg(steps=2, batch=8, val_share=0.0, state_noise=0.05)
+    trainer = Trainer("mpnet", robot, data_dir, cfg, TINY)
+    size = 4000
+    _, q, _, q_next = trainer.train_pairs.batch(np.random.default_rng(3), size)
+    tensors = trainer._tensors(trainer.train_pairs, np.random.default_rng(3), size, noise=0.05)
+    q_in, delta = tensors[2].numpy(), tensors[4].numpy()
+    moved = np.any(np.abs(q_in - q) > 1e-6, axis=1)
+    assert abs(moved.mean() - 0.5) < 0.03, moved.mean()
+    inside = (q_in >= robot.lower - 1e-6) & (q_in <= robot.upper + 1e-6)
+    assert inside.all()
+    free = np.all((q[moved] > robot.lower + 0.3) & (q[moved] < robot.upper - 0.3), axis=1)
+    assert abs(float(np.std(q_in[moved][free] - q[moved][free])) - 0.05) < 0.005
+    # the label is the step from the state the network sees to the oracle's next waypoint
+    np.testing.assert_allclose(delta * trainer.model_cfg.step, q_next - q_in, atol=1e-5)
+    clean = trainer._tensors(trainer.train_pairs, np.random.default_rng(3), size)
+    np.testing.assert_array_equal(clean[2].numpy(), q)
+
+    trainer.run(tmp_path / "w.pt")
+    card = json.loads((tmp_path / "w.pt.card.json").read_text())
+    assert card["train"]["state_noise"] == 0.05
+    with pytest.raises(ModelError, match="state_noise"):
+        Trainer("mpnet", robot, data_dir, replace(cfg, state_noise=-0.1), TINY)
