@@ -59,6 +59,10 @@ RETRAINED = (
         for seed in (1, 2)
         for kind in ("gaide", "simpnet")
     ]
+    + [
+        ("weights-train50k-band-state-noise", "train50k-band", 50398, kind, 5000)
+        for kind in ("gaide", "simpnet")
+    ]
 )
 
 
@@ -83,6 +87,8 @@ def test_the_weights_trained_on_the_50k_sets_load_and_name_their_data(
     manifest = path.parent.parent / data / "manifest.json"
     assert card["data_manifest_sha256"] == file_sha256(manifest)
     assert card["data_paths"] == json.loads(manifest.read_text())["paths"] == paths
+    # only the state-noise folder was trained on jittered states (docs/results.md)
+    assert card["train"].get("state_noise", 0.0) == (0.05 if folder.endswith("state-noise") else 0)
 
 
 @pytest.mark.parametrize("family", ["tabletop", "shelf_i"])
