@@ -88,7 +88,7 @@ def test_the_weights_trained_on_the_50k_sets_load_and_name_their_data(
     manifest = path.parent.parent / data / "manifest.json"
     assert card["data_manifest_sha256"] == file_sha256(manifest)
     assert card["data_paths"] == json.loads(manifest.read_text())["paths"] == paths
-    # only the state-noise folder was trained on jittered states (docs/results.md)
+    # only the three state-noise folders were trained on jittered states (docs/results.md)
     assert card["train"].get("state_noise", 0.0) == (0.05 if "state-noise" in folder else 0)
 
 
