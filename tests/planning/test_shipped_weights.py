@@ -64,6 +64,11 @@ RETRAINED = (
         for seed in ("", "-seed1", "-seed2")
         for kind in ("gaide", "simpnet")
     ]
+    + [("weights-train50k-band-h200", "train50k-band", 50398, kind, 3590) for kind in MODEL_KINDS]
+    + [
+        ("weights-train50k-band-h200-seed1", "train50k-band", 50398, kind, 3590)
+        for kind in ("gaide", "simpnet")
+    ]
 )
 
 
@@ -90,6 +95,10 @@ def test_the_weights_trained_on_the_50k_sets_load_and_name_their_data(
     assert card["data_paths"] == json.loads(manifest.read_text())["paths"] == paths
     # only the three state-noise folders were trained on jittered states (docs/results.md)
     assert card["train"].get("state_noise", 0.0) == (0.05 if "state-noise" in folder else 0)
+    # only the two H200 folders were trained on a GPU, at the paper's batch of 256 (docs/gpu/)
+    on_gpu = "h200" in folder
+    assert card["device"].startswith("cuda") == on_gpu
+    assert (card["train"]["batch"] == 256) == on_gpu
 
 
 @pytest.mark.parametrize("family", ["tabletop", "shelf_i"])
