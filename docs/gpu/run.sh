@@ -16,7 +16,7 @@ for spec in $RUNS; do
   m=${spec%:*}; s=${spec#*:}
   mkdir -p /tmp/w/s$s
   timeout $((DEADLINE - START + 60)) python3 .gpu/drive.py --model $m --seed $s --batch ${BATCH:-256} \
-    --out /tmp/w/s$s/$m.pt --deadline $DEADLINE --rates /tmp/rates --procs $N \
+    --out /tmp/w/s$s/$m.pt --deadline $DEADLINE --rates /tmp/rates --procs $N --max-steps ${MAX_STEPS:-1000000} \
     > /tmp/w/log-$m-$s.txt 2>&1 &
 done
 while [ $(jobs -r | wc -l) -gt 0 ]; do sleep 10; echo "t=$(( $(date +%s) - START )) s: $(nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader)"; done
