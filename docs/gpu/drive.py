@@ -1,6 +1,7 @@
-"""One training run of the project's Trainer on a machine without Pinocchio, Open3D or
-trimesh (the lent GPU machine): the robot's embodiment, point-cloud kinematics and signature
-come from a bundle made where Pinocchio is (make_bundle.py). The step count is set from the
+"""One training run of the project's Trainer on a machine without Pinocchio, Open3D or OMPL
+(the lent GPU machine; trimesh travels there as its wheel): the robot's embodiment,
+point-cloud kinematics and signature come from a bundle made where Pinocchio is
+(make_bundle.py). The step count is set from the
 rate measured in the first 90 steps (all inside the warm-up, whose learning rate does not
 depend on the step count), the slowest of the concurrent runs, so all end by --deadline with
 the same number of steps."""
